@@ -1,0 +1,83 @@
+"""The `admittance` command line (design.md, "Command line").
+
+    admittance simulate [SCENARIO] [--set KEY=VALUE ...] [--out DIR]
+
+Errors in the input print one line naming the key and exit with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from diagrams.scenario import ScenarioError, builtin_scenario_names, load_scenario
+
+DEFAULT_SCENARIO = "paper_stiffness_step"
+EXIT_INPUT_ERROR = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports usage errors in one line with status 2."""
+
+    def error(self, message: str) -> None:  # noqa: D102
+        self.exit(EXIT_INPUT_ERROR, f"{self.prog}: error: {message}\n")
+
+
+def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "scenario",
+        nargs="?",
+        default=DEFAULT_SCENARIO,
+        help=f"built-in name ({', '.join(builtin_scenario_names())}) or a YAML path "
+        f"(default: {DEFAULT_SCENARIO})",
+    )
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario key, e.g. --set wall.stiffness=2e4 (repeatable)",
+    )
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from diagrams.report import summary, write_results
+    from diagrams.simulation import run_scenario
+
+    scenario = load_scenario(args.scenario, args.overrides)
+    out = Path(args.out) if args.out else Path("results") / scenario.name
+    result = run_scenario(scenario)
+    write_results(result, out)
+    print(summary(result))
+    print(f"wrote {out}/: timeseries.csv, metrics.json, scenario.yaml, fig5-7 PNG")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="admittance",
+        description="Optimal admittance control of a 3-DOF planar arm against a compliant "
+        "wall (Drake).",
+    )
+    commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    simulate = commands.add_parser("simulate", help="run one scenario headless, write results")
+    _add_scenario_arguments(simulate)
+    simulate.add_argument("--out", help="output folder (default: results/<scenario name>)")
+    simulate.set_defaults(handler=_cmd_simulate)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.handler(args)
+    except ScenarioError as error:
+        print(f"admittance: error: {error}", file=sys.stderr)
+        return EXIT_INPUT_ERROR
+
+
+if __name__ == "__main__":
+    sys.exit(main())

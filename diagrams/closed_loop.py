@@ -1,0 +1,299 @@
+"""The paper's Fig. 1 as a Drake Diagram: arm, wall, sensor, optimal admittance and PID.
+
+Xd --(+)--> Xc --> CartesianPid --tau--> plant --state--> CompliantWall --F--> sensor
+      ^ Xr                                  ^  spatial force |                    |
+      +------- OptimalAdmittance <-- Fm ----+----------------+--------------------+
+                      ^ Fr
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.common import RandomDistribution, RandomGenerator
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder
+from pydrake.systems.primitives import (
+    Adder,
+    ConstantVectorSource,
+    Gain,
+    LogVectorOutput,
+    RandomSource,
+    VectorLogSink,
+)
+
+from diagrams.scenario import Scenario, ScenarioError
+from systems.cartesian_pid import CartesianPid
+from systems.compliant_wall import CompliantWall
+from systems.desired_trajectory import DesiredTrajectory
+from systems.flexiforce import FlexiForceSensor
+from systems.optimal_admittance import OptimalAdmittance
+from systems.planar_kinematics import PlanarFrameKinematics
+
+__all__ = [
+    "ClosedLoop",
+    "AddPlanarArm",
+    "BuildClosedLoop",
+    "SetInitialConditions",
+    "SolvePlanarInverseKinematics",
+]
+
+GRAVITY_W = np.array([0.0, -9.81, 0.0])
+# The wall-normal axis of X = (x, y, theta), the only force-controlled axis in the paper.
+WALL_NORMAL_AXIS = 0
+
+
+@dataclass
+class ClosedLoop:
+    """A built closed loop and handles to its parts."""
+
+    scenario: Scenario
+    diagram: Diagram
+    plant: MultibodyPlant
+    trajectory: DesiredTrajectory
+    pid: CartesianPid
+    wall: CompliantWall
+    sensor: FlexiForceSensor
+    admittance: OptimalAdmittance | None
+    random_sources: list[RandomSource] = field(default_factory=list)
+    loggers: dict[str, VectorLogSink] = field(default_factory=dict)
+    scene_graph: object | None = None
+
+
+def AddPlanarArm(builder: DiagramBuilder, scenario: Scenario):
+    """Adds the arm of `scenario.arm` as a continuous MultibodyPlant, gravity along -y.
+
+    Returns:
+        (plant, scene_graph), the plant finalized.
+    """
+    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+    plant.set_name("plant")
+    scene_graph.set_name("scene_graph")
+    Parser(plant).AddModels(str(scenario.urdf_path()))
+    plant.mutable_gravity_field().set_gravity_vector(GRAVITY_W)
+    if not scenario.arm.reflected_inertia:
+        for index in plant.GetJointActuatorIndices():
+            plant.get_mutable_joint_actuator(index).set_default_rotor_inertia(0.0)
+    plant.Finalize()
+    if not plant.HasFrameNamed(scenario.arm.fingertip_frame):
+        raise ScenarioError(
+            f"arm.fingertip_frame: the URDF has no frame named '{scenario.arm.fingertip_frame}'"
+        )
+    return plant, scene_graph
+
+
+def BuildClosedLoop(scenario: Scenario, *, analysis: bool = False) -> ClosedLoop:
+    """Wires the paper's Fig. 1 for `scenario`.
+
+    Args:
+        scenario: a validated scenario.
+        analysis: build for Linearize: no random source (the noise input is held at zero)
+            and no loggers, so that every system converts to AutoDiffXd.
+    """
+    builder = DiagramBuilder()
+    plant, scene_graph = AddPlanarArm(builder, scenario)
+    frame = scenario.arm.fingertip_frame
+
+    trajectory = builder.AddSystem(
+        DesiredTrajectory(
+            center=scenario.trajectory.center,
+            amplitude=scenario.trajectory.amplitude,
+            frequency=scenario.trajectory.frequency,
+        )
+    )
+    trajectory.set_name("desired_trajectory")
+
+    wall_config = scenario.wall
+    wall = builder.AddSystem(
+        CompliantWall(
+            plant,
+            frame_name=frame,
+            position=wall_config.position,
+            stiffness=wall_config.stiffness,
+            stiffness_steps=[(s.time, s.stiffness) for s in wall_config.stiffness_steps],
+            velocity=wall_config.velocity,
+            motion_start=wall_config.motion_start,
+            motion_end=wall_config.motion_end,
+        )
+    )
+    wall.set_name("compliant_wall")
+    builder.Connect(plant.get_state_output_port(), wall.estimated_state_input)
+    builder.Connect(wall.applied_spatial_force_output, plant.get_applied_spatial_force_input_port())
+
+    sensor_config = scenario.sensor
+    sensor = builder.AddSystem(
+        FlexiForceSensor(kind=sensor_config.kind, filter_cutoff_hz=sensor_config.filter_cutoff)
+    )
+    sensor.set_name("flexiforce_sensor")
+    builder.Connect(wall.contact_force_output, sensor.contact_force_input)
+    random_sources = []
+    noisy = sensor_config.kind != "ideal" and sensor_config.noise_std > 0 and not analysis
+    if noisy:
+        source = builder.AddSystem(
+            RandomSource(RandomDistribution.kGaussian, 1, sensor_config.noise_period)
+        )
+        source.set_name("sensor_noise")
+        random_sources.append(source)
+        gain = builder.AddSystem(Gain(sensor_config.noise_std, 1))
+        gain.set_name("noise_std")
+        builder.Connect(source.get_output_port(0), gain.get_input_port())
+        builder.Connect(gain.get_output_port(), sensor.noise_input)
+    else:
+        zero = builder.AddSystem(ConstantVectorSource([0.0]))
+        zero.set_name("no_noise")
+        builder.Connect(zero.get_output_port(), sensor.noise_input)
+
+    pid_config = scenario.pid
+    pid = builder.AddSystem(
+        CartesianPid(
+            plant,
+            frame_name=frame,
+            kp=pid_config.kp,
+            kd=pid_config.kd,
+            ki=pid_config.ki,
+            period=pid_config.period,
+        )
+    )
+    pid.set_name("cartesian_pid")
+    builder.Connect(plant.get_state_output_port(), pid.estimated_state_input)
+    builder.Connect(pid.actuation_output, plant.get_actuation_input_port())
+    builder.Connect(trajectory.desired_velocity_output, pid.commanded_velocity_input)
+
+    admittance = None
+    if scenario.admittance.enabled:
+        admittance_config = scenario.admittance
+        admittance = builder.AddSystem(
+            OptimalAdmittance(
+                gamma=admittance_config.gamma,
+                alpha=admittance_config.alpha,
+                # K of eq. 10 is the PID's stiffness on the wall-normal axis (paper-notes 4).
+                stiffness=pid_config.kp[WALL_NORMAL_AXIS],
+                force_axes=[WALL_NORMAL_AXIS],
+                num_axes=3,
+                period=admittance_config.period,
+            )
+        )
+        admittance.set_name("optimal_admittance")
+        force_reference = builder.AddSystem(ConstantVectorSource([scenario.force_reference]))
+        force_reference.set_name("force_reference")
+        builder.Connect(force_reference.get_output_port(), admittance.desired_force_input)
+        builder.Connect(sensor.measured_force_output, admittance.measured_force_input)
+        commanded = builder.AddSystem(Adder(2, 3))
+        commanded.set_name("commanded_position")
+        builder.Connect(trajectory.desired_position_output, commanded.get_input_port(0))
+        builder.Connect(admittance.reference_offset_output, commanded.get_input_port(1))
+        builder.Connect(commanded.get_output_port(), pid.commanded_position_input)
+    else:
+        builder.Connect(trajectory.desired_position_output, pid.commanded_position_input)
+
+    loggers = {}
+    if not analysis:
+        period = scenario.logging.period
+        ports = {
+            "state": plant.get_state_output_port(),
+            "contact_force": wall.contact_force_output,
+            "measured_force": sensor.measured_force_output,
+            "desired_position": trajectory.desired_position_output,
+        }
+        if admittance is not None:
+            ports["reference_offset"] = admittance.reference_offset_output
+        for name, port in ports.items():
+            logger = LogVectorOutput(port, builder, period)
+            logger.set_name(f"log_{name}")
+            loggers[name] = logger
+
+    diagram = builder.Build()
+    diagram.set_name("optimal_admittance_loop")
+    return ClosedLoop(
+        scenario=scenario,
+        diagram=diagram,
+        plant=plant,
+        trajectory=trajectory,
+        pid=pid,
+        wall=wall,
+        sensor=sensor,
+        admittance=admittance,
+        random_sources=random_sources,
+        loggers=loggers,
+        scene_graph=scene_graph,
+    )
+
+
+def SolvePlanarInverseKinematics(
+    plant: MultibodyPlant,
+    frame_name: str,
+    target,
+    joint_guess,
+    *,
+    tolerance: float = 1e-10,
+    max_iterations: int = 100,
+) -> np.ndarray:
+    """Joint positions that put `frame_name` at X = target, by Newton steps from a seed.
+
+    Uses the plant's own kinematics (so any planar URDF works); the seed picks the branch.
+
+    Raises:
+        ValueError: the target is not reached (out of the workspace, or singular).
+    """
+    kinematics = PlanarFrameKinematics(plant, frame_name)
+    target = np.asarray(target, dtype=float)
+    q = np.zeros(plant.num_positions())
+    guess = np.asarray(joint_guess, dtype=float)
+    q[: min(q.size, guess.size)] = guess[: q.size]
+    v = np.zeros(plant.num_velocities())
+    for _ in range(max_iterations):
+        kinematics.set_state(np.concatenate([q, v]))
+        error = target - kinematics.pose()
+        error[2] = np.arctan2(np.sin(error[2]), np.cos(error[2]))
+        if np.linalg.norm(error) < tolerance:
+            return q
+        step = np.linalg.lstsq(kinematics.jacobian(), error, rcond=None)[0]
+        # Limit each Newton step so that a far seed does not jump branches.
+        q = q + step * min(1.0, 0.5 / max(np.max(np.abs(step)), 1e-12))
+    raise ValueError(f"the pose {target.tolist()} is not reachable from the seed {guess.tolist()}")
+
+
+def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
+    """The arm at rest at the scenario's initial pose, held against gravity by its PID.
+
+    * every random source seeded from `scenario.seed` (the rest of the context is reset to
+      its defaults);
+    * q from the inverse kinematics of `arm.initial_position` (default Xd(0)), v = 0;
+    * the PID integral preloaded so that, at zero error, it cancels gravity (a robot that
+      was holding its pose before the run starts);
+    * the admittance block's E(0) set to Fr - F_measured(0), so that Xr(0) = 0.
+    """
+    scenario = loop.scenario
+    plant = loop.plant
+    loop.diagram.SetRandomContext(context, RandomGenerator(int(scenario.seed)))
+    target = list(scenario.arm.initial_position)
+    if not target:
+        # Xd(0), but never inside the wall: a desired point behind the wall surface starts
+        # the tip touching the undeformed wall, with zero force.
+        target = list(loop.trajectory.position_at(0.0))
+        target[WALL_NORMAL_AXIS] = min(target[WALL_NORMAL_AXIS], loop.wall.position_at(0.0))
+    try:
+        q0 = SolvePlanarInverseKinematics(
+            plant, scenario.arm.fingertip_frame, target, scenario.arm.joint_guess
+        )
+    except ValueError as error:
+        key = "arm.initial_position" if scenario.arm.initial_position else "trajectory.center"
+        raise ScenarioError(f"{key}: {error}") from None
+    plant_context = plant.GetMyMutableContextFromRoot(context)
+    plant.SetPositions(plant_context, q0)
+    plant.SetVelocities(plant_context, np.zeros(plant.num_velocities()))
+
+    gravity = plant.CalcGravityGeneralizedForces(plant_context)
+    state = plant.GetPositionsAndVelocities(plant_context)
+    pid_context = loop.pid.GetMyMutableContextFromRoot(context)
+    if np.all(loop.pid.gains["ki"] > 0):
+        loop.pid.set_integral(pid_context, loop.pid.holding_integral(state, -gravity))
+
+    if loop.admittance is not None:
+        measured = loop.sensor.measured_force_output.Eval(loop.sensor.GetMyContextFromRoot(context))
+        admittance_context = loop.admittance.GetMyMutableContextFromRoot(context)
+        loop.admittance.set_initial_force_error(
+            admittance_context, np.array([scenario.force_reference]) - measured
+        )

@@ -1,0 +1,255 @@
+"""Headless simulation of a scenario, its time series and its force metrics."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+
+from diagrams.closed_loop import BuildClosedLoop, ClosedLoop, SetInitialConditions
+from diagrams.scenario import Scenario
+from systems.planar_kinematics import PlanarFrameKinematics
+
+__all__ = ["SimulationResult", "compute_metrics", "run_scenario"]
+
+# Window over which "steady state" and "before an event" errors are averaged, s.
+STEADY_WINDOW = 1.0
+# Band around Fr that counts as settled (relative).
+SETTLE_BAND = 0.05
+# With sensor noise, settling is judged on the force averaged over this many noise samples,
+# so that the ripple the noise leaves on the force (which no controller removes) does not
+# hide that the loop has settled. Without noise the raw force is used.
+SETTLE_AVERAGE_SAMPLES = 4
+# A force above this fraction of Fr counts as contact (the tip may start touching the wall
+# with zero force, which is not yet a contact).
+CONTACT_FRACTION = 0.01
+
+
+@dataclass
+class SimulationResult:
+    """Time series of one run, as plain arrays (SI units), and its metrics."""
+
+    scenario: Scenario
+    time: np.ndarray
+    pose: np.ndarray  # (N, 3): x, y, theta of the fingertip
+    desired_position: np.ndarray  # (N, 3): Xd
+    reference_offset: np.ndarray  # (N, 3): Xr (zeros without the admittance block)
+    force: np.ndarray  # (N,): true contact force
+    force_measured: np.ndarray  # (N,)
+    wall_position: np.ndarray  # (N,): Xe(t)
+    wall_stiffness: np.ndarray  # (N,): Ke(t)
+    joint_positions: np.ndarray  # (N, nq)
+    wall_time: float
+    integrator_steps: int
+    derivative_evaluations: int
+    metrics: dict = field(default_factory=dict)
+
+    @property
+    def force_reference(self) -> float:
+        return self.scenario.force_reference
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The timeseries.csv columns (design.md), in order."""
+        cartesian_error = self.desired_position + self.reference_offset - self.pose
+        return {
+            "time": self.time,
+            "x": self.pose[:, 0],
+            "y": self.pose[:, 1],
+            "theta": self.pose[:, 2],
+            "xd": self.desired_position[:, 0],
+            "yd": self.desired_position[:, 1],
+            "thetad": self.desired_position[:, 2],
+            "xr": self.reference_offset[:, 0],
+            "ex": cartesian_error[:, 0],
+            "ey": cartesian_error[:, 1],
+            "etheta": cartesian_error[:, 2],
+            "force": self.force,
+            "force_measured": self.force_measured,
+            "force_reference": np.full_like(self.time, self.force_reference),
+            "wall_position": self.wall_position,
+            "wall_stiffness": self.wall_stiffness,
+        }
+
+
+def _time_mean(time: np.ndarray, values: np.ndarray) -> float:
+    """Time-weighted mean (trapezoid) of samples at irregular times."""
+    if time.size < 2 or time[-1] <= time[0]:
+        return float(np.mean(values)) if values.size else math.nan
+    return float(np.trapezoid(values, time) / (time[-1] - time[0]))
+
+
+def _window(time: np.ndarray, start: float, end: float) -> np.ndarray:
+    return (time >= start) & (time <= end)
+
+
+def _trailing_average(time: np.ndarray, values: np.ndarray, window: float) -> np.ndarray:
+    """Mean of `values` over [t - window, t] at each sample (trapezoid, irregular times)."""
+    integral = np.concatenate([[0.0], np.cumsum(np.diff(time) * 0.5 * (values[1:] + values[:-1]))])
+    start = np.maximum(time - window, time[0])
+    span = time - start
+    averaged = values.astype(float).copy()
+    ok = span > 0
+    averaged[ok] = (integral[ok] - np.interp(start[ok], time, integral)) / span[ok]
+    return averaged
+
+
+def _settling_time(time, force, reference, event_time, end_time) -> float | None:
+    """Time after `event_time` from which |F - Fr| <= 5 % Fr until `end_time`.
+
+    `force` may be averaged first to ignore noise ripple (see compute_metrics).
+    """
+    mask = _window(time, event_time, end_time)
+    t = time[mask]
+    outside = np.abs(force[mask] - reference) > SETTLE_BAND * reference
+    if t.size == 0 or outside[-1]:
+        return None
+    if not outside.any():
+        return 0.0
+    last_outside = np.nonzero(outside)[0][-1]
+    return float(t[last_outside + 1] - event_time)
+
+
+def compute_metrics(result: SimulationResult) -> dict:
+    """Force metrics of design.md, plus per-event settling and contact losses."""
+    time = result.time
+    force = result.force
+    reference = result.force_reference
+    scenario = result.scenario
+    duration = float(time[-1])
+    error = np.abs(force - reference)
+    in_contact = force > CONTACT_FRACTION * reference
+    contact_indices = np.nonzero(in_contact)[0]
+    first_contact = float(time[contact_indices[0]]) if contact_indices.size else None
+
+    metrics: dict = {
+        "peak_force": float(np.max(force)),
+        "steady_state_force_error": _time_mean(
+            time[_window(time, duration - STEADY_WINDOW, duration)],
+            error[_window(time, duration - STEADY_WINDOW, duration)],
+        ),
+        "rms_force_error": None,
+        "first_contact_time": first_contact,
+        "contact_losses": 0,
+        "last_contact_loss_time": None,
+        "mean_abs_force_error_settled": None,
+        "events": [],
+        "wall_time": result.wall_time,
+        "real_time_factor": duration / result.wall_time if result.wall_time > 0 else None,
+        "integrator_steps": result.integrator_steps,
+        "derivative_evaluations": result.derivative_evaluations,
+        "samples": int(time.size),
+    }
+    if first_contact is None:
+        return metrics
+
+    after = time >= first_contact
+    metrics["rms_force_error"] = math.sqrt(_time_mean(time[after], error[after] ** 2))
+    # Contact losses: transitions from contact to no contact after first contact.
+    lost = np.nonzero(in_contact[:-1] & ~in_contact[1:])[0]
+    metrics["contact_losses"] = int(lost.size)
+    if lost.size:
+        metrics["last_contact_loss_time"] = float(time[lost[-1] + 1])
+
+    # Events: stiffness steps and wall motion start/stop, plus first contact.
+    events = [("first_contact", first_contact)]
+    events += [
+        ("stiffness_step", s.time) for s in scenario.wall.stiffness_steps if s.time < duration
+    ]
+    if scenario.wall.velocity != 0.0:
+        events.append(("wall_starts", scenario.wall.motion_start))
+        if scenario.wall.motion_end < duration:
+            events.append(("wall_stops", scenario.wall.motion_end))
+    events.sort(key=lambda e: e[1])
+    sensor = scenario.sensor
+    if sensor.kind != "ideal" and sensor.noise_std > 0:
+        window = SETTLE_AVERAGE_SAMPLES * sensor.noise_period
+        averaged_force = _trailing_average(time, force, window)
+    else:
+        averaged_force = force
+    # Settled: at least one window after every event.
+    settled = after.copy()
+    for index, (kind, event_time) in enumerate(events):
+        next_time = events[index + 1][1] if index + 1 < len(events) else duration
+        before = _window(time, event_time - STEADY_WINDOW, event_time)
+        window = _window(time, event_time, next_time)
+        settled &= ~_window(time, event_time, event_time + STEADY_WINDOW)
+        metrics["events"].append(
+            {
+                "kind": kind,
+                "time": float(event_time),
+                "mean_abs_force_error_before": (
+                    _time_mean(time[before], error[before])
+                    if kind != "first_contact" and before.sum() > 1
+                    else None
+                ),
+                "peak_force_after": float(np.max(force[window])) if window.any() else None,
+                "min_force_after": float(np.min(force[window])) if window.any() else None,
+                "settling_time": _settling_time(
+                    time, averaged_force, reference, event_time, next_time
+                ),
+            }
+        )
+    if settled.sum() > 1:
+        metrics["mean_abs_force_error_settled"] = _time_mean(time[settled], error[settled])
+    if scenario.wall.velocity != 0.0:
+        moving = _window(time, scenario.wall.motion_start, min(scenario.wall.motion_end, duration))
+        if moving.any():
+            metrics["force_min_while_wall_moves"] = float(np.min(force[moving]))
+            metrics["force_max_while_wall_moves"] = float(np.max(force[moving]))
+    return metrics
+
+
+def _log_data(loop: ClosedLoop, root_context, name: str):
+    logger = loop.loggers[name]
+    log = logger.FindLog(root_context)
+    return log.sample_times(), log.data().T
+
+
+def run_scenario(scenario: Scenario, *, loop: ClosedLoop | None = None) -> SimulationResult:
+    """Builds (unless given), initializes and simulates `scenario`; returns its time series."""
+    loop = loop or BuildClosedLoop(scenario)
+    simulator = Simulator(loop.diagram)
+    ApplySimulatorConfig(scenario.simulator, simulator)
+    context = simulator.get_mutable_context()
+    SetInitialConditions(loop, context)
+    simulator.Initialize()
+    start = time.perf_counter()
+    simulator.AdvanceTo(scenario.duration)
+    wall_time = time.perf_counter() - start
+
+    sample_times, states = _log_data(loop, context, "state")
+    _, contact_force = _log_data(loop, context, "contact_force")
+    _, measured = _log_data(loop, context, "measured_force")
+    _, desired = _log_data(loop, context, "desired_position")
+    if "reference_offset" in loop.loggers:
+        _, offset = _log_data(loop, context, "reference_offset")
+    else:
+        offset = np.zeros_like(desired)
+
+    # Fingertip pose from the logged plant state, once, at the end.
+    kinematics = PlanarFrameKinematics(loop.plant, scenario.arm.fingertip_frame)
+    pose = np.empty((sample_times.size, 3))
+    for row, state in enumerate(states):
+        kinematics.set_state(state)
+        pose[row] = kinematics.pose()
+    integrator = simulator.get_integrator()
+    result = SimulationResult(
+        scenario=scenario,
+        time=sample_times,
+        pose=pose,
+        desired_position=desired,
+        reference_offset=offset,
+        force=contact_force[:, 0],
+        force_measured=measured[:, 0],
+        wall_position=np.array([loop.wall.position_at(t) for t in sample_times]),
+        wall_stiffness=np.array([loop.wall.stiffness_at(t) for t in sample_times]),
+        joint_positions=states[:, : loop.plant.num_positions()],
+        wall_time=wall_time,
+        integrator_steps=int(integrator.get_num_steps_taken()),
+        derivative_evaluations=int(integrator.get_num_derivative_evaluations()),
+    )
+    result.metrics = compute_metrics(result)
+    return result

@@ -1,0 +1,190 @@
+"""The compliant wall of the paper's environment model (eq. 4)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from pydrake.autodiffutils import AutoDiffXd
+from pydrake.common.cpp_param import List
+from pydrake.common.value import Value
+from pydrake.math import max as scalar_max
+from pydrake.multibody.math import SpatialForce_
+from pydrake.multibody.plant import ExternallyAppliedSpatialForce_
+from pydrake.systems.framework import LeafSystem_
+from pydrake.systems.scalar_conversion import TemplateSystem
+
+__all__ = ["CompliantWall", "CompliantWall_"]
+
+
+@TemplateSystem.define("CompliantWall_", T_list=[float, AutoDiffXd])
+def CompliantWall_(T):
+    class Impl(LeafSystem_[T]):
+        """A unilateral linear-spring wall normal to world +x (paper eq. 4).
+
+            F = Ke(t) * max(x_tip - Xe(t), 0)      (compressive, >= 0; the wall never pulls)
+
+        is applied to the fingertip point as the world force (-F, 0, 0), and output as the
+        true contact force. Ke steps at given times; Xe moves along +x at a given velocity
+        between a start and an end time:
+
+            Ke(t) = stiffness_i for the last step time t_i <= t (initial value before any)
+            Xe(t) = position + velocity * clamp(t - motion_start, 0, motion_end - motion_start)
+
+        There is no damping and no friction: the wall is the pure spring of eq. 4, and Ke is
+        the equivalent stiffness of the wall, the silicone fingertip and the sensor together.
+
+        .. pydrake_system::
+
+            name: CompliantWall
+            input_ports:
+            - estimated_state
+            output_ports:
+            - applied_spatial_force
+            - contact_force
+        """
+
+        def _construct(
+            self,
+            plant,
+            *,
+            frame_name: str = "fingertip",
+            position: float,
+            stiffness: float,
+            stiffness_steps: Sequence[tuple[float, float]] = (),
+            velocity: float = 0.0,
+            motion_start: float = 0.0,
+            motion_end: float = math.inf,
+            converter=None,
+        ) -> None:
+            """
+            Args:
+                plant: finalized MultibodyPlant_[T] of the arm.
+                frame_name: the frame whose origin touches the wall (the fingertip).
+                position: Xe at t = 0, m along world x.
+                stiffness: Ke at t = 0, N/m (> 0).
+                stiffness_steps: (time s, Ke N/m) pairs, times increasing, Ke > 0.
+                velocity: wall speed along +x while it moves, m/s (0 = static).
+                motion_start, motion_end: when the wall moves, s (end >= start).
+            """
+            LeafSystem_[T].__init__(self, converter=converter)
+            if not plant.HasFrameNamed(frame_name):
+                raise ValueError(f"the plant has no frame named '{frame_name}'")
+            if not (math.isfinite(position)):
+                raise ValueError(f"position must be finite, got {position}")
+            if not (math.isfinite(stiffness) and stiffness > 0):
+                raise ValueError(f"stiffness must be > 0 N/m, got {stiffness}")
+            steps = [(float(t), float(k)) for t, k in stiffness_steps]
+            times = [t for t, _ in steps]
+            if any(not (math.isfinite(k) and k > 0) for _, k in steps):
+                raise ValueError(f"stiffness_steps values must be > 0 N/m, got {steps}")
+            if any(not math.isfinite(t) for t in times) or times != sorted(times):
+                raise ValueError(f"stiffness_steps times must be finite and increasing: {times}")
+            if not math.isfinite(velocity):
+                raise ValueError(f"velocity must be finite, got {velocity}")
+            if not (math.isfinite(motion_start) and motion_end >= motion_start):
+                raise ValueError(
+                    f"motion_end ({motion_end}) must be >= motion_start ({motion_start})"
+                )
+            self._plant = plant
+            self._frame_name = frame_name
+            self._position = float(position)
+            self._stiffness = float(stiffness)
+            self._steps = steps
+            self._velocity = float(velocity)
+            self._motion_start = float(motion_start)
+            self._motion_end = float(motion_end)
+
+            frame = plant.GetFrameByName(frame_name)
+            self._body_index = frame.body().index()
+            # The contact point in the body frame (the frame's origin), fixed in the body.
+            self._p_BoFo_B = frame.GetFixedPoseInBodyFrame().translation()
+            self._plant_context = plant.CreateDefaultContext()
+            self._frame = frame
+            self._world = plant.world_frame()
+            self._origin = np.zeros(3)
+
+            num_states = plant.num_positions() + plant.num_velocities()
+            self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", num_states)
+            self.applied_spatial_force_output = self.DeclareAbstractOutputPort(
+                "applied_spatial_force",
+                lambda: Value[List[ExternallyAppliedSpatialForce_[T]]](),
+                self._CalcSpatialForce,
+            )
+            self.contact_force_output = self.DeclareVectorOutputPort(
+                "contact_force", 1, self._CalcContactForce
+            )
+
+        def _construct_copy(self, other, converter=None) -> None:
+            Impl._construct(
+                self,
+                other._plant.ToScalarType[T](),
+                frame_name=other._frame_name,
+                position=other._position,
+                stiffness=other._stiffness,
+                stiffness_steps=other._steps,
+                velocity=other._velocity,
+                motion_start=other._motion_start,
+                motion_end=other._motion_end,
+                converter=converter,
+            )
+
+        # --- schedules (plain floats: time is not differentiated) -------------------------
+        def stiffness_at(self, time: float) -> float:
+            """Ke(t), N/m."""
+            stiffness = self._stiffness
+            for step_time, step_stiffness in self._steps:
+                if time >= step_time:
+                    stiffness = step_stiffness
+            return stiffness
+
+        def position_at(self, time: float) -> float:
+            """Xe(t), m."""
+            moving = min(max(time - self._motion_start, 0.0), self._motion_end - self._motion_start)
+            return self._position + self._velocity * moving
+
+        def discontinuity_times(self) -> list[float]:
+            """Times at which Ke jumps or the wall starts or stops (for the integrator)."""
+            times = [t for t, _ in self._steps]
+            if self._velocity != 0.0:
+                times += [self._motion_start]
+                if math.isfinite(self._motion_end):
+                    times += [self._motion_end]
+            return sorted(times)
+
+        # --- the law ----------------------------------------------------------------------
+        def _force(self, context):
+            """The compressive contact force F >= 0 (N) at the context's time and state."""
+            self._plant.SetPositionsAndVelocities(
+                self._plant_context, self.estimated_state_input.Eval(context)
+            )
+            tip = self._plant.CalcPointsPositions(
+                self._plant_context, self._frame, self._origin, self._world
+            )[0, 0]
+            time = context.get_time()
+            if T is not float:
+                time = time.value() if hasattr(time, "value") else float(time)
+            penetration = tip - self.position_at(time)
+            if T is float:
+                return self.stiffness_at(time) * max(penetration, 0.0)
+            return self.stiffness_at(time) * scalar_max(penetration, T(0.0))
+
+        def _CalcContactForce(self, context, output) -> None:
+            output.SetFromVector([self._force(context)])
+
+        def _CalcSpatialForce(self, context, output) -> None:
+            force = self.contact_force_output.Eval(context)[0]
+            applied = ExternallyAppliedSpatialForce_[T]()
+            applied.body_index = self._body_index
+            applied.p_BoBq_B = self._p_BoFo_B
+            zero = T(0.0)
+            applied.F_Bq_W = SpatialForce_[T](
+                tau=np.array([zero, zero, zero]), f=np.array([-force, zero, zero])
+            )
+            output.set_value([applied])
+
+    return Impl
+
+
+CompliantWall = CompliantWall_[None]

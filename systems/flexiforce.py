@@ -1,0 +1,346 @@
+"""FlexiForce A201 force sensor with its Tekscan conditioning circuit (paper Section VI-B).
+
+The paper measures the tip force with a Tekscan FlexiForce A201 (0-111 N variant used over
+the paper's 0-100 N range) read through "an operational amplifier and analog filter, as
+recommended by the manufacturer". This module models that chain as one Drake system,
+:class:`FlexiForceSensor` (``FlexiForceSensor_[T]`` for T in float, AutoDiffXd and symbolic
+Expression), plus an ``ideal`` pass-through kind for comparisons. See
+``docs/paper-notes.md`` section 7 for the datasheet facts.
+
+Default constants (all are constructor arguments):
+
+* ``conductance_per_newton`` c = 6.0e-7 S/N. The A201 conductance 1/R is roughly linear in
+  force (datasheet, "Force vs. conductance"), but Tekscan gives the curve only as a typical
+  plot, not as a number per force range. c is chosen so that R = 1 / (G0 + c * 111 N) =
+  15.0 kOhm at the rated 111 N (16.6 kOhm at 100 N), a plausible value in the 10-20 kOhm
+  range typical of a loaded A201. The slope varies from sensor to sensor (the datasheet
+  asks for a per-sensor calibration), so it is a representative value, not a measured one.
+* ``unloaded_conductance`` G0 = 5.0e-8 S, i.e. 20 MOhm unloaded (datasheet: > 5 MOhm).
+* ``drive_voltage`` V_drive = -0.5 V (Tekscan's recommended inverting circuit, "-V_T").
+* ``feedback_resistance`` R_f = 150 kOhm. Derived so that the paper's full scale spans the
+  op-amp's output swing: 100 N -> 4.5 V with 5 V rails gives
+  R_f = 4.5 V / (0.5 V * (G0 + c * 100 N)) = 149.9 kOhm, rounded to the E12 value 150 kOhm.
+  Then the gain is 0.045 V/N, the unloaded output 3.75 mV, 100 N reads 4.504 V and the
+  output saturates at 5 V, i.e. at 111.03 N (the sensor's rated range).
+* ``rail_voltage`` = 5.0 V, the op-amp's positive output limit (dual +-5 V supply).
+* ``filter_cutoff_hz`` = 50 Hz first-order RC low-pass, tau = 1 / (2 pi 50 Hz) = 3.18 ms.
+  The sensor's own response time (< 5 us, datasheet) is negligible next to it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pydrake.math
+from pydrake.autodiffutils import AutoDiffXd
+from pydrake.symbolic import Expression
+from pydrake.systems.framework import BasicVector_, LeafSystem_
+from pydrake.systems.scalar_conversion import TemplateSystem
+
+__all__ = ["FlexiForceSensor", "FlexiForceSensor_", "SENSOR_KINDS"]
+
+#: The allowed values of the ``kind`` constructor argument.
+SENSOR_KINDS = ("flexiforce", "ideal")
+
+# Datasheet bound on the unloaded resistance (> 5 MOhm), as a conductance bound in S.
+_MAX_UNLOADED_CONDUCTANCE = 1.0 / 5.0e6
+
+# The quadratic bow keeps the force-to-conductance map monotone while |linearity_error| < 1/4.
+_MAX_ABS_LINEARITY_ERROR = 0.25
+
+
+def _require_finite(name: str, value: float, allowed: str) -> float:
+    """Returns ``value`` as a float, or raises ValueError naming ``name`` and ``allowed``."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number {allowed}; got {value!r}") from None
+    if not math.isfinite(number):
+        raise ValueError(f"{name} must be finite {allowed}; got {value!r}")
+    return number
+
+
+def _check(condition: bool, name: str, value: float, allowed: str) -> None:
+    """Raises ValueError naming ``name`` and the ``allowed`` range unless ``condition``."""
+    if not condition:
+        raise ValueError(f"{name} must be {allowed}; got {value!r}")
+
+
+@TemplateSystem.define("FlexiForceSensor_", T_list=[float, AutoDiffXd, Expression])
+def FlexiForceSensor_(T):
+    """Template of the FlexiForce A201 sensor system; see ``FlexiForceSensor``."""
+
+    class Impl(LeafSystem_[T]):
+        """FlexiForce A201 force sensor, op-amp and analog low-pass filter (paper VI-B).
+
+        Law (paper Section VI-B; Tekscan A201 datasheet, recommended circuit), for the
+        ``"flexiforce"`` kind, with F the true compressive contact force in N::
+
+            F+      = max(F, 0)                                       (no tension reading)
+            F_eff   = F+ + b * u * (1 - u),  u = min(F+ / F_fs, 1),
+                      b = 4 * linearity_error * F_fs                  (bow; 0 by default)
+            G       = G0 + c * F_eff                                  (conductance, S)
+            V_s     = min(-V_drive * R_f * G, V_rail)                 (inverting op-amp, V)
+            dV/dt   = (V_s - V) / tau,  tau = 1 / (2 pi f_c)          (RC low-pass, state V)
+            F_meas  = (V - V_offset) / k + n                          (ADC + calibration, N)
+
+        with V_offset = -V_drive * R_f * G0 (unloaded output, V) and k = -V_drive * R_f * c
+        (gain, V/N): the ideal linear calibration of a perfect sensor. With
+        ``linearity_error`` e != 0 the reading is off by e * F_fs * 4 u (1 - u): zero at 0 and
+        at full scale, e * F_fs at mid-range (the datasheet's linearity error is < 3 % FS).
+        Above full scale the bow is zero. The reading saturates at
+        ``saturation_force`` = (V_rail - V_offset) / k when the op-amp output hits its rail.
+        The negative rail never binds (V_drive < 0, G >= 0 give V_s >= 0), so it is not
+        modelled. Repeatability, hysteresis, drift and temperature effects are not modelled.
+
+        Noise: n is the ``noise`` input in N, added to the calibrated reading after the
+        analog filter (it stands for ADC, wiring and sensor noise referred to force). So a
+        ``noise_std`` in the project is the standard deviation of the measured-force noise,
+        unaffected by the filter. The system itself is deterministic: feed ``noise`` from a
+        RandomSource (through a Gain of noise_std) or fix it to zero.
+
+        The continuous state is the filtered voltage V (V); its default value is the
+        unloaded output V_offset, so an unloaded sensor reads 0 N at t = 0. The output
+        depends only on the state and ``noise`` (no direct feed-through from
+        ``contact_force``), which is declared so Drake sees no algebraic loop through the
+        contact force.
+
+        The ``"ideal"`` kind is an exact pass-through: ``measured_force = contact_force``,
+        no state, ``noise`` ignored (it is still declared so diagrams wire either kind the
+        same way). The analysis helpers (``static_output_voltage``, ``calibrated_force``,
+        ``filter_time_constant``, ``saturation_force``) describe the FlexiForce circuit
+        whatever the kind.
+
+        The constants are fixed at construction (not context parameters): the callbacks
+        run tens of thousands of times per simulation and use precomputed Python floats.
+
+        .. pydrake_system::
+
+            name: FlexiForceSensor
+            input_ports:
+            - contact_force
+            - noise
+            output_ports:
+            - measured_force
+        """
+
+        def _construct(
+            self,
+            *,
+            kind: str = "flexiforce",
+            conductance_per_newton: float = 6.0e-7,
+            unloaded_conductance: float = 5.0e-8,
+            drive_voltage: float = -0.5,
+            feedback_resistance: float = 150.0e3,
+            rail_voltage: float = 5.0,
+            filter_cutoff_hz: float = 50.0,
+            linearity_error: float = 0.0,
+            full_scale_force: float = 100.0,
+            converter=None,
+        ) -> None:
+            """Declares the ports and the filter state.
+
+            Args:
+                kind: ``"flexiforce"`` (the full chain) or ``"ideal"`` (pass-through).
+                conductance_per_newton: c, sensor conductance slope, S/N (> 0).
+                unloaded_conductance: G0, sensor conductance at zero force, S
+                    (0 <= G0 <= 2e-7 S, i.e. unloaded resistance >= 5 MOhm).
+                drive_voltage: V_drive, voltage driving the sensor into the inverting
+                    op-amp, V (< 0, so the output is positive).
+                feedback_resistance: R_f, op-amp feedback resistor, Ohm (> 0).
+                rail_voltage: positive output limit of the op-amp, V (greater than the
+                    unloaded output -V_drive * R_f * G0).
+                filter_cutoff_hz: cut-off frequency of the first-order RC low-pass, Hz
+                    (> 0).
+                linearity_error: bow of the force-to-conductance curve at mid-range, as a
+                    fraction of ``full_scale_force`` (-0.25 < e < 0.25; datasheet < 0.03).
+                full_scale_force: F_fs, the calibrated range's full scale, N (> 0); only
+                    shapes the linearity bow.
+                converter: scalar converter, supplied by TemplateSystem.
+
+            Raises:
+                ValueError: an argument is outside its allowed range (the message names
+                    it and the range).
+            """
+            LeafSystem_[T].__init__(self, converter=converter)
+            if kind not in SENSOR_KINDS:
+                raise ValueError(f"kind must be one of {SENSOR_KINDS}; got {kind!r}")
+            c = _require_finite("conductance_per_newton", conductance_per_newton, "> 0 S/N")
+            _check(c > 0.0, "conductance_per_newton", conductance_per_newton, "> 0 S/N")
+            g0_range = f"in [0, {_MAX_UNLOADED_CONDUCTANCE:g}] S (unloaded R >= 5 MOhm)"
+            g0 = _require_finite("unloaded_conductance", unloaded_conductance, g0_range)
+            _check(
+                0.0 <= g0 <= _MAX_UNLOADED_CONDUCTANCE,
+                "unloaded_conductance",
+                unloaded_conductance,
+                g0_range,
+            )
+            v_drive = _require_finite("drive_voltage", drive_voltage, "< 0 V")
+            _check(v_drive < 0.0, "drive_voltage", drive_voltage, "< 0 V")
+            r_f = _require_finite("feedback_resistance", feedback_resistance, "> 0 Ohm")
+            _check(r_f > 0.0, "feedback_resistance", feedback_resistance, "> 0 Ohm")
+            v_offset = -v_drive * r_f * g0
+            rail_range = f"> the unloaded output voltage {v_offset:g} V"
+            v_rail = _require_finite("rail_voltage", rail_voltage, rail_range)
+            _check(v_rail > v_offset, "rail_voltage", rail_voltage, rail_range)
+            f_c = _require_finite("filter_cutoff_hz", filter_cutoff_hz, "> 0 Hz")
+            _check(f_c > 0.0, "filter_cutoff_hz", filter_cutoff_hz, "> 0 Hz")
+            lin_range = f"in ({-_MAX_ABS_LINEARITY_ERROR:g}, {_MAX_ABS_LINEARITY_ERROR:g})"
+            e_lin = _require_finite("linearity_error", linearity_error, lin_range)
+            _check(
+                abs(e_lin) < _MAX_ABS_LINEARITY_ERROR, "linearity_error", linearity_error, lin_range
+            )
+            f_fs = _require_finite("full_scale_force", full_scale_force, "> 0 N")
+            _check(f_fs > 0.0, "full_scale_force", full_scale_force, "> 0 N")
+
+            # Kept for _construct_copy (scalar conversion).
+            self._construct_args = dict(
+                kind=kind,
+                conductance_per_newton=c,
+                unloaded_conductance=g0,
+                drive_voltage=v_drive,
+                feedback_resistance=r_f,
+                rail_voltage=v_rail,
+                filter_cutoff_hz=f_c,
+                linearity_error=e_lin,
+                full_scale_force=f_fs,
+            )
+            self._kind = kind
+            # Precomputed constants (Python floats).
+            self._v_offset = v_offset  # V, unloaded output
+            self._gain = -v_drive * r_f * c  # V/N
+            self._inv_gain = 1.0 / self._gain  # N/V
+            self._v_rail = v_rail  # V
+            self._tau = 1.0 / (2.0 * math.pi * f_c)  # s
+            self._inv_tau = 2.0 * math.pi * f_c  # 1/s
+            self._inv_full_scale = 1.0 / f_fs  # 1/N
+            self._bow = 4.0 * e_lin * f_fs  # N, so the mid-range bow is e_lin * f_fs
+            if T is float:
+                self._max, self._min = max, min
+            else:
+                self._max, self._min = pydrake.math.max, pydrake.math.min
+
+            self.contact_force_input = self.DeclareVectorInputPort("contact_force", 1)
+            self.noise_input = self.DeclareVectorInputPort("noise", 1)
+            if kind == "ideal":
+                self.measured_force_output = self.DeclareVectorOutputPort(
+                    "measured_force",
+                    1,
+                    self._calc_ideal_output,
+                    prerequisites_of_calc={self.contact_force_input.ticket()},
+                )
+                return
+            self.DeclareContinuousState(BasicVector_[T]([v_offset]))
+            if T is float:
+                calc_output = self._calc_output_float
+            else:
+                calc_output = self._calc_output
+            self.measured_force_output = self.DeclareVectorOutputPort(
+                "measured_force",
+                1,
+                calc_output,
+                prerequisites_of_calc={self.xc_ticket(), self.noise_input.ticket()},
+            )
+
+        def _construct_copy(self, other, converter=None) -> None:
+            """Copies ``other``'s constants (scalar conversion)."""
+            Impl._construct(self, converter=converter, **other._construct_args)
+
+        # ----------------------------------------------------------------- calcs
+        def _static_voltage(self, force):
+            """V_s for a force of scalar type T (no Python branch on its value)."""
+            force = self._max(force, 0.0)
+            if self._bow != 0.0:  # a constant, not a value of type T
+                u = self._min(force * self._inv_full_scale, 1.0)
+                force = force + self._bow * u * (1.0 - u)
+            return self._min(self._v_offset + self._gain * force, self._v_rail)
+
+        def DoCalcTimeDerivatives(self, context, derivatives) -> None:
+            """dV/dt = (V_s(F) - V) / tau (the ideal kind has no state)."""
+            if self._kind == "ideal":
+                return
+            if T is float:
+                force = self.contact_force_input.Eval(context).item()
+            else:
+                force = self.contact_force_input.Eval(context)[0]
+            voltage = context.get_continuous_state_vector().GetAtIndex(0)
+            derivatives.get_mutable_vector().SetAtIndex(
+                0, (self._static_voltage(force) - voltage) * self._inv_tau
+            )
+
+        def _calc_output_float(self, context, output) -> None:
+            """F_meas = (V - V_offset) / k + n, double-only fast path."""
+            voltage = context.get_continuous_state_vector().GetAtIndex(0)
+            noise = self.noise_input.Eval(context).item()
+            output.SetAtIndex(0, (voltage - self._v_offset) * self._inv_gain + noise)
+
+        def _calc_output(self, context, output) -> None:
+            """F_meas = (V - V_offset) / k + n, for any scalar type."""
+            voltage = context.get_continuous_state_vector().GetAtIndex(0)
+            noise = self.noise_input.Eval(context)[0]
+            output.SetAtIndex(0, (voltage - self._v_offset) * self._inv_gain + noise)
+
+        def _calc_ideal_output(self, context, output) -> None:
+            """measured_force = contact_force."""
+            output.SetFromVector(self.contact_force_input.Eval(context))
+
+        # --------------------------------------------------- analysis helpers
+        @property
+        def kind(self) -> str:
+            """``"flexiforce"`` or ``"ideal"``."""
+            return self._kind
+
+        @property
+        def filter_time_constant(self) -> float:
+            """Time constant tau = 1 / (2 pi f_c) of the analog low-pass, s."""
+            return self._tau
+
+        @property
+        def saturation_force(self) -> float:
+            """Largest reading (noise aside), N: the calibrated force at the op-amp rail."""
+            return (self._v_rail - self._v_offset) * self._inv_gain
+
+        @property
+        def unloaded_voltage(self) -> float:
+            """Op-amp output with no load, V_offset = -V_drive * R_f * G0, V."""
+            return self._v_offset
+
+        @property
+        def gain(self) -> float:
+            """Calibration gain k = -V_drive * R_f * c, V/N."""
+            return self._gain
+
+        def static_output_voltage(self, force: float | np.ndarray) -> float | np.ndarray:
+            """Op-amp output before the filter, saturated at the rail, V.
+
+            Args:
+                force: true contact force(s), N (negative values read as 0).
+
+            Returns:
+                V_s, a float for a scalar force, an array for an array of forces.
+            """
+            force = np.maximum(np.asarray(force, dtype=float), 0.0)
+            if self._bow != 0.0:
+                u = np.minimum(force * self._inv_full_scale, 1.0)
+                force = force + self._bow * u * (1.0 - u)
+            voltage = np.minimum(self._v_offset + self._gain * force, self._v_rail)
+            return float(voltage) if voltage.ndim == 0 else voltage
+
+        def calibrated_force(self, voltage: float | np.ndarray) -> float | np.ndarray:
+            """Ideal linear calibration (V - V_offset) / k of a voltage reading, N.
+
+            Args:
+                voltage: filtered op-amp voltage(s), V.
+
+            Returns:
+                The calibrated force, a float for a scalar voltage, else an array.
+            """
+            force = (np.asarray(voltage, dtype=float) - self._v_offset) * self._inv_gain
+            return float(force) if force.ndim == 0 else force
+
+    return Impl
+
+
+#: The double-valued FlexiForce sensor system (see ``FlexiForceSensor_``).
+FlexiForceSensor = FlexiForceSensor_[None]

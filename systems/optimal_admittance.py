@@ -1,0 +1,232 @@
+"""The optimal admittance law of the paper (eq. 10), in its derivative-free form.
+
+The paper minimises I = 1/2 |E + alpha dE/dt|^2 over the reference offset Xr by a gradient
+flow (eq. 8). With E = Fr - F and the impedance model of eq. 5, dE/dXr = -K, so
+
+    dXr/dt = + Gamma K (E + alpha dE/dt)                          (eq. 10', paper-notes 2)
+
+The printed eq. 9-10 carry the opposite sign, which drives the arm away from the wall; this
+module implements the corrected sign: while the measured force is below the desired one
+(E > 0) the reference moves along +axis (into the wall), and while it is above (E < 0) the
+reference recedes. Integrating once (paper-notes 3) removes the derivative of the noisy force:
+
+    Xr(t) = Gamma K [ z(t) + alpha (E(t) - E(0)) ],   dz/dt = E.
+
+Seen from the force error this is a proportional-integral law with proportional gain
+Gamma K alpha and integral gain Gamma K. The block never differentiates the measured force.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from pydrake.autodiffutils import AutoDiffXd
+from pydrake.symbolic import Expression
+from pydrake.systems.framework import BasicVector_, LeafSystem_
+from pydrake.systems.scalar_conversion import TemplateSystem
+
+__all__ = ["OptimalAdmittance", "OptimalAdmittance_"]
+
+
+def _positive_vector(
+    name: str, value: float | Sequence[float], size: int, *, allow_zero: bool
+) -> np.ndarray:
+    """Broadcasts `value` to `size` entries and checks its sign."""
+    array = np.broadcast_to(np.asarray(value, dtype=float), (size,)).copy()
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} must be finite, got {array.tolist()}")
+    if allow_zero and np.any(array < 0):
+        raise ValueError(f"{name} must be >= 0, got {array.tolist()}")
+    if not allow_zero and np.any(array <= 0):
+        raise ValueError(f"{name} must be > 0, got {array.tolist()}")
+    return array
+
+
+@TemplateSystem.define("OptimalAdmittance_", T_list=[float, AutoDiffXd, Expression])
+def OptimalAdmittance_(T):
+    class Impl(LeafSystem_[T]):
+        """Optimal admittance (paper eq. 10 with the corrected sign), one integrator per axis.
+
+        For each force-controlled axis i (an index into the Cartesian vector X = (x, y, theta)):
+
+            E_i = desired_force_i - measured_force_i
+            dz_i/dt = E_i
+            Xr_i = gamma_i * stiffness_i * (z_i + alpha_i * (E_i - E0_i))
+
+        and Xr = 0 on the other axes. ``stiffness`` is K of eq. 5 and 10: the Cartesian
+        stiffness of the position-controlled arm, i.e. the PID's Kp on that axis. E0 is the
+        force error at t = 0 (a numeric parameter, see ``set_initial_force_error``) so that
+        Xr(0) = 0.
+
+        With ``period > 0`` the law is sampled as a digital controller would run it: at each
+        sample k, Xr[k] = Gamma K (z[k] + alpha (E[k] - E0)) is latched (zero-order hold) and
+        z[k+1] = z[k] + period * E[k]. The output then depends on the state only.
+
+        .. pydrake_system::
+
+            name: OptimalAdmittance
+            input_ports:
+            - measured_force
+            - desired_force
+            output_ports:
+            - reference_offset
+        """
+
+        def _construct(
+            self,
+            *,
+            gamma: float | Sequence[float],
+            alpha: float | Sequence[float],
+            stiffness: float | Sequence[float],
+            force_axes: Sequence[int] = (0,),
+            num_axes: int = 3,
+            period: float = 0.0,
+            converter=None,
+        ) -> None:
+            """
+            Args:
+                gamma: Gamma of eq. 10 per force-controlled axis (> 0), m/(N s) per unit K.
+                alpha: weight of dE/dt in the cost of eq. 7, per axis (>= 0), s.
+                stiffness: K of eq. 10 per axis (> 0): the PID's Kp on that axis, N/m.
+                force_axes: indices of the force-controlled axes in X (x=0, y=1, theta=2).
+                num_axes: size of the reference offset output (3 for a planar arm).
+                period: 0 for the continuous law, otherwise the sampling period in s.
+            """
+            LeafSystem_[T].__init__(self, converter=converter)
+            axes = [int(a) for a in force_axes]
+            if not axes:
+                raise ValueError("force_axes must name at least one axis")
+            if len(set(axes)) != len(axes) or min(axes) < 0 or max(axes) >= num_axes:
+                raise ValueError(
+                    f"force_axes must be distinct indices in [0, {num_axes - 1}], got {axes}"
+                )
+            if not (np.isfinite(period) and period >= 0):
+                raise ValueError(f"period must be >= 0 s (0 = continuous), got {period}")
+            size = len(axes)
+            self._axes = axes
+            self._num_axes = int(num_axes)
+            self._period = float(period)
+            self._gamma = _positive_vector("gamma", gamma, size, allow_zero=False)
+            self._alpha = _positive_vector("alpha", alpha, size, allow_zero=True)
+            self._stiffness = _positive_vector("stiffness", stiffness, size, allow_zero=False)
+            # The gains of the equivalent PI law on the force error.
+            self._integral_gain = self._gamma * self._stiffness
+            self._proportional_gain = self._integral_gain * self._alpha
+
+            self.measured_force_input = self.DeclareVectorInputPort("measured_force", size)
+            self.desired_force_input = self.DeclareVectorInputPort("desired_force", size)
+            self._initial_error_index = self.DeclareNumericParameter(
+                BasicVector_[T](np.zeros(size))
+            )
+            if self._period == 0.0:
+                self.DeclareContinuousState(size)
+                self.reference_offset_output = self.DeclareVectorOutputPort(
+                    "reference_offset", self._num_axes, self._CalcContinuousOutput
+                )
+            else:
+                # Discrete state: [z (integral of E), Xr held].
+                self._state_index = self.DeclareDiscreteState(2 * size)
+                self.DeclarePeriodicDiscreteUpdateEvent(
+                    period_sec=self._period, offset_sec=0.0, update=self._DiscreteUpdate
+                )
+                self.reference_offset_output = self.DeclareVectorOutputPort(
+                    "reference_offset",
+                    self._num_axes,
+                    self._CalcSampledOutput,
+                    prerequisites_of_calc={self.xd_ticket()},
+                )
+
+        def _construct_copy(self, other, converter=None) -> None:
+            Impl._construct(
+                self,
+                gamma=other._gamma,
+                alpha=other._alpha,
+                stiffness=other._stiffness,
+                force_axes=other._axes,
+                num_axes=other._num_axes,
+                period=other._period,
+                converter=converter,
+            )
+
+        # --- accessors -------------------------------------------------------------------
+        @property
+        def force_axes(self) -> list[int]:
+            return list(self._axes)
+
+        @property
+        def period(self) -> float:
+            return self._period
+
+        @property
+        def proportional_gain(self) -> np.ndarray:
+            """Gamma K alpha per axis, m/N: the direct reaction of Xr to a force change."""
+            return self._proportional_gain.copy()
+
+        @property
+        def integral_gain(self) -> np.ndarray:
+            """Gamma K per axis, m/(N s): the rate of Xr per newton of force error."""
+            return self._integral_gain.copy()
+
+        def set_initial_force_error(self, context, initial_force_error) -> None:
+            """Sets E(0), so that Xr(0) = 0 (usually desired - measured force at t = 0)."""
+            context.get_mutable_numeric_parameter(self._initial_error_index).SetFromVector(
+                np.atleast_1d(initial_force_error)
+            )
+
+        def set_integral(self, context, integral) -> None:
+            """Sets z, the integral of the force error (for a warm start or an analysis)."""
+            integral = np.atleast_1d(integral)
+            if self._period == 0.0:
+                context.SetContinuousState(integral)
+            else:
+                state = context.get_mutable_discrete_state(self._state_index)
+                value = np.array(state.CopyToVector())
+                value[: len(self._axes)] = integral
+                state.SetFromVector(value)
+
+        # --- the law ----------------------------------------------------------------------
+        def _force_error(self, context):
+            return self.desired_force_input.Eval(context) - self.measured_force_input.Eval(context)
+
+        def _offset(self, context, integral, error):
+            initial_error = context.get_numeric_parameter(self._initial_error_index).CopyToVector()
+            return self._integral_gain * (integral + self._alpha * (error - initial_error))
+
+        def _scatter(self, values):
+            full = [T(0.0)] * self._num_axes
+            for axis, value in zip(self._axes, values, strict=True):
+                full[axis] = value
+            return np.array(full)
+
+        # DiagramBuilder.Build probes the calcs with NaN values; np.errstate keeps numpy
+        # from warning about it.
+        def DoCalcTimeDerivatives(self, context, derivatives) -> None:
+            with np.errstate(invalid="ignore"):
+                derivatives.get_mutable_vector().SetFromVector(self._force_error(context))
+
+        def _CalcContinuousOutput(self, context, output) -> None:
+            integral = context.get_continuous_state_vector().CopyToVector()
+            with np.errstate(invalid="ignore"):
+                offset = self._offset(context, integral, self._force_error(context))
+            output.SetFromVector(self._scatter(offset))
+
+        def _DiscreteUpdate(self, context, discrete_state) -> None:
+            size = len(self._axes)
+            state = context.get_discrete_state(self._state_index).CopyToVector()
+            integral = state[:size]
+            error = self._force_error(context)
+            offset = self._offset(context, integral, error)
+            discrete_state.get_mutable_vector(self._state_index).SetFromVector(
+                np.concatenate([integral + self._period * error, offset])
+            )
+
+        def _CalcSampledOutput(self, context, output) -> None:
+            size = len(self._axes)
+            state = context.get_discrete_state(self._state_index).CopyToVector()
+            output.SetFromVector(self._scatter(state[size:]))
+
+    return Impl
+
+
+OptimalAdmittance = OptimalAdmittance_[None]

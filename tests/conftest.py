@@ -1,0 +1,18 @@
+"""Shared fixtures: the arm's plant as the project loads it."""
+
+from __future__ import annotations
+
+import pytest
+
+from diagrams.closed_loop import AddPlanarArm
+from diagrams.scenario import Scenario
+
+
+@pytest.fixture(scope="session")
+def arm_plant():
+    """The paper's arm (rigid-body model, gravity along -y), finalized, in its own diagram."""
+    from pydrake.systems.framework import DiagramBuilder
+
+    builder = DiagramBuilder()
+    plant, _ = AddPlanarArm(builder, Scenario())
+    return plant

@@ -1,0 +1,65 @@
+"""The `admittance` command line: the files it writes and its one-line errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+
+import pytest
+
+from diagrams.cli import main
+
+REQUIRED_COLUMNS = ["time", "x", "y", "theta", "xr", "force", "force_measured", "force_reference"]
+REQUIRED_METRICS = [
+    "peak_force",
+    "steady_state_force_error",
+    "rms_force_error",
+    "first_contact_time",
+    "wall_time",
+    "real_time_factor",
+]
+
+
+def test_simulate_writes_timeseries_metrics_and_figures(tmp_path, capsys):
+    out = tmp_path / "run"
+    status = main(["simulate", "paper_moving_wall", "--set", "duration=1.0", "--out", str(out)])
+    assert status == 0
+    names = {p.name for p in out.iterdir()}
+    assert {"timeseries.csv", "metrics.json", "scenario.yaml"} <= names
+    assert {"fig5_errors.png", "fig6_reference.png", "fig7_force.png"} <= names
+    with open(out / "timeseries.csv") as file:
+        rows = list(csv.DictReader(file))
+    assert set(REQUIRED_COLUMNS) <= set(rows[0])
+    assert float(rows[-1]["time"]) == pytest.approx(1.0)
+    assert float(rows[-1]["force"]) > 0  # pressing the wall
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert set(REQUIRED_METRICS) <= set(metrics)
+    assert metrics["peak_force"] == pytest.approx(max(float(r["force"]) for r in rows))
+    assert "peak force" in capsys.readouterr().out
+    # No staging folders are left next to the result.
+    assert [p.name for p in tmp_path.iterdir()] == ["run"]
+
+
+@pytest.mark.parametrize(
+    "arguments, key",
+    [
+        (["simulate", "--set", "wall.stiffnes=1e4"], "wall.stiffnes"),
+        (["simulate", "--set", "admittance.gamma=-1"], "admittance.gamma"),
+        (["simulate", "no_such_scenario"], "scenario"),
+        (["simulate", "--set", "sensor.kind=piezo"], "sensor.kind"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, arguments, key):
+    out = tmp_path / "run"
+    completed = subprocess.run(
+        [sys.executable, "-m", "diagrams.cli", *arguments, "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert completed.returncode == 2
+    lines = completed.stderr.strip().splitlines()
+    assert len(lines) == 1 and key in lines[0] and "Traceback" not in completed.stderr
+    assert not out.exists() and list(tmp_path.iterdir()) == []

@@ -1,0 +1,103 @@
+"""The compliant wall (eq. 4): unilateral spring, stiffness schedule and wall motion."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from systems.compliant_wall import CompliantWall
+from systems.planar_kinematics import PlanarFrameKinematics
+
+Q = np.array([-0.45, 1.66, 0.36])  # an elbow configuration near the paper's task point
+
+
+def _tip_x(plant, q):
+    kinematics = PlanarFrameKinematics(plant, "fingertip")
+    kinematics.set_state(np.concatenate([q, np.zeros(3)]))
+    return kinematics.pose()[0]
+
+
+def _wall_context(wall, q, time=0.0):
+    context = wall.CreateDefaultContext()
+    context.SetTime(time)
+    wall.estimated_state_input.FixValue(context, np.concatenate([q, np.zeros(3)]))
+    return context
+
+
+@pytest.mark.parametrize("penetration", [-1e-3, 0.0, 1e-4, 2e-3])
+def test_force_is_unilateral_spring(arm_plant, penetration):
+    tip = _tip_x(arm_plant, Q)
+    wall = CompliantWall(arm_plant, position=tip - penetration, stiffness=5e4)
+    force = wall.contact_force_output.Eval(_wall_context(wall, Q))[0]
+    assert force == pytest.approx(5e4 * max(penetration, 0.0), abs=1e-9)
+    assert force >= 0.0  # the wall never pulls
+
+
+def test_spatial_force_pushes_the_fingertip_along_minus_x(arm_plant):
+    tip = _tip_x(arm_plant, Q)
+    wall = CompliantWall(arm_plant, position=tip - 1e-4, stiffness=5e4)
+    (applied,) = wall.applied_spatial_force_output.Eval(_wall_context(wall, Q))
+    link3 = arm_plant.GetBodyByName("link3")
+    assert applied.body_index == link3.index()
+    np.testing.assert_allclose(applied.p_BoBq_B, [0.0, -0.10, 0.0], atol=1e-12)
+    np.testing.assert_allclose(applied.F_Bq_W.translational(), [-5.0, 0.0, 0.0], atol=1e-9)
+    np.testing.assert_allclose(applied.F_Bq_W.rotational(), [0.0, 0.0, 0.0])
+
+
+def test_stiffness_steps_at_the_given_times(arm_plant):
+    tip = _tip_x(arm_plant, Q)
+    wall = CompliantWall(
+        arm_plant, position=tip - 1e-4, stiffness=5e4, stiffness_steps=[(15.0, 1e5), (20.0, 2e4)]
+    )
+    for time, stiffness in [(0.0, 5e4), (14.999, 5e4), (15.0, 1e5), (19.0, 1e5), (25.0, 2e4)]:
+        assert wall.stiffness_at(time) == stiffness
+        force = wall.contact_force_output.Eval(_wall_context(wall, Q, time))[0]
+        assert force == pytest.approx(stiffness * 1e-4, rel=1e-6)
+
+
+def test_wall_moves_between_start_and_end(arm_plant):
+    wall = CompliantWall(
+        arm_plant, position=0.15, stiffness=2e4, velocity=0.005, motion_start=2.5, motion_end=6.5
+    )
+    for time, position in [(0.0, 0.15), (2.5, 0.15), (4.5, 0.16), (6.5, 0.17), (9.0, 0.17)]:
+        assert wall.position_at(time) == pytest.approx(position, abs=1e-15)
+    assert wall.discontinuity_times() == [2.5, 6.5]
+    # A wall that recedes past the tip releases it.
+    tip = _tip_x(arm_plant, Q)
+    wall = CompliantWall(arm_plant, position=tip - 1e-3, stiffness=2e4, velocity=0.01)
+    assert wall.contact_force_output.Eval(_wall_context(wall, Q, 0.0))[0] > 0
+    assert wall.contact_force_output.Eval(_wall_context(wall, Q, 0.2))[0] == 0.0
+
+
+def test_autodiff_force_slope_is_the_stiffness(arm_plant):
+    from pydrake.autodiffutils import AutoDiffXd
+
+    tip = _tip_x(arm_plant, Q)
+    wall = CompliantWall(arm_plant, position=tip - 1e-4, stiffness=5e4).ToAutoDiffXd()
+    context = wall.CreateDefaultContext()
+    state = [AutoDiffXd(value, np.eye(6)[i]) for i, value in enumerate(np.r_[Q, 0, 0, 0])]
+    wall.estimated_state_input.FixValue(context, state)
+    force = wall.contact_force_output.Eval(context)[0]
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics.set_state(np.r_[Q, 0, 0, 0])
+    np.testing.assert_allclose(force.derivatives()[:3], 5e4 * kinematics.jacobian()[0], rtol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(stiffness=0.0), "stiffness"),
+        (dict(stiffness_steps=[(1.0, -5.0)]), "stiffness_steps"),
+        (dict(stiffness_steps=[(2.0, 1e4), (1.0, 1e4)]), "increasing"),
+        (dict(position=math.nan), "position"),
+        (dict(motion_start=3.0, motion_end=1.0), "motion_end"),
+        (dict(frame_name="elbow"), "elbow"),
+    ],
+)
+def test_bad_arguments_name_the_argument(arm_plant, kwargs, message):
+    arguments = dict(position=0.2, stiffness=5e4)
+    arguments.update(kwargs)
+    with pytest.raises(ValueError, match=message):
+        CompliantWall(arm_plant, **arguments)

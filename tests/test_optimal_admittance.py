@@ -1,0 +1,135 @@
+"""The optimal admittance block: the corrected sign of eq. 10, its derivative-free form, and
+its sampled version, against hand-computed values."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pydrake.autodiffutils import AutoDiffXd, InitializeAutoDiff
+from pydrake.systems.analysis import Simulator
+
+from systems.optimal_admittance import OptimalAdmittance
+
+GAMMA, ALPHA, K = 1e-5, 0.1, 2500.0  # the paper's x-axis values (paper-notes 4)
+
+
+def _block(**kwargs):
+    arguments = dict(gamma=GAMMA, alpha=ALPHA, stiffness=K, force_axes=[0], num_axes=3)
+    arguments.update(kwargs)
+    return OptimalAdmittance(**arguments)
+
+
+def _context(block, measured, desired, *, integral=0.0, initial_error=None):
+    context = block.CreateDefaultContext()
+    block.measured_force_input.FixValue(context, [measured])
+    block.desired_force_input.FixValue(context, [desired])
+    block.set_integral(context, [integral])
+    block.set_initial_force_error(
+        context, [desired - measured if initial_error is None else initial_error]
+    )
+    return context
+
+
+def test_output_is_the_derivative_free_law():
+    block = _block()
+    # E = 5 - 3 = 2 N, E0 = 5 N, z = 0.4 N s:
+    # Xr = Gamma K (z + alpha (E - E0)) = 0.025 * (0.4 + 0.1 * (2 - 5)) = 0.0025 m.
+    context = _context(block, measured=3.0, desired=5.0, integral=0.4, initial_error=5.0)
+    offset = block.reference_offset_output.Eval(context)
+    np.testing.assert_allclose(offset, [0.0025, 0.0, 0.0], rtol=0, atol=1e-15)
+    derivatives = block.EvalTimeDerivatives(context).CopyToVector()
+    np.testing.assert_allclose(derivatives, [2.0])
+
+
+@pytest.mark.parametrize(
+    "measured, direction", [(2.0, +1.0), (8.0, -1.0)], ids=["below_Fr", "above_Fr"]
+)
+def test_sign_moves_reference_toward_the_wall_while_force_is_low(measured, direction):
+    """paper-notes 2: F < Fr => Xr grows along +x (into the wall); F > Fr => it recedes."""
+    block = _block()
+    context = _context(block, measured=measured, desired=5.0)
+    simulator = Simulator(block, context)
+    simulator.AdvanceTo(0.2)
+    offset = block.reference_offset_output.Eval(context)[0]
+    # Constant E with E0 = E: Xr(t) = Gamma K E t exactly.
+    error = 5.0 - measured
+    assert np.sign(offset) == direction
+    assert offset == pytest.approx(GAMMA * K * error * 0.2, rel=1e-9)
+
+
+def test_gradient_flow_rate_matches_eq_10_prime():
+    """dXr/dt = Gamma K (E + alpha dE/dt) for a force that ramps (checked by AutoDiff)."""
+    block = _block().ToAutoDiffXd()
+    context = block.CreateDefaultContext()
+    # Time-varying inputs as AutoDiff values with d/dt: F = 3 + 4 t, z = 0.4, dz/dt = E.
+    measured = 3.0
+    rate = 4.0  # dF/dt, so dE/dt = -4
+    error = 5.0 - measured
+    (z,) = InitializeAutoDiff([[0.4]]).flatten()
+    z = AutoDiffXd(0.4, [error])
+    block.measured_force_input.FixValue(context, [AutoDiffXd(measured, [rate])])
+    block.desired_force_input.FixValue(context, [AutoDiffXd(5.0, [0.0])])
+    context.SetContinuousState([z])
+    block.set_initial_force_error(context, [AutoDiffXd(5.0, [0.0])])
+    offset = block.reference_offset_output.Eval(context)[0]
+    expected_rate = GAMMA * K * (error + ALPHA * (-rate))
+    assert offset.derivatives()[0] == pytest.approx(expected_rate, rel=1e-12)
+
+
+def test_equivalent_pi_gains():
+    block = _block()
+    assert block.integral_gain[0] == pytest.approx(GAMMA * K)
+    assert block.proportional_gain[0] == pytest.approx(GAMMA * K * ALPHA)
+
+
+def test_only_force_axes_move():
+    block = _block(force_axes=[1], gamma=[2e-5], alpha=[0.0], stiffness=[1000.0])
+    context = _context(block, measured=0.0, desired=1.0, integral=3.0)
+    np.testing.assert_allclose(block.reference_offset_output.Eval(context), [0.0, 0.06, 0.0])
+
+
+def test_sampled_law_latches_and_integrates():
+    period = 0.001
+    block = _block(period=period)
+    context = _context(block, measured=4.0, desired=5.0, integral=0.2, initial_error=5.0)
+    # Output is the held value (0 at start) and does not feed through the force.
+    assert block.reference_offset_output.Eval(context)[0] == 0.0
+    assert not block.HasDirectFeedthrough(
+        block.measured_force_input.get_index(), block.reference_offset_output.get_index()
+    )
+    updated = block.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
+    # z[k+1] = 0.2 + 0.001 * 1; Xr[k] = 0.025 * (0.2 + 0.1 * (1 - 5)) = -0.005.
+    np.testing.assert_allclose(updated, [0.201, -0.005], atol=1e-15)
+
+
+def test_continuous_law_feeds_through_the_force():
+    block = _block()
+    assert block.HasDirectFeedthrough(
+        block.measured_force_input.get_index(), block.reference_offset_output.get_index()
+    )
+
+
+def test_autodiff_gain_of_output_to_force():
+    block = _block().ToAutoDiffXd()
+    context = block.CreateDefaultContext()
+    block.measured_force_input.FixValue(context, [AutoDiffXd(3.0, [1.0])])
+    block.desired_force_input.FixValue(context, [AutoDiffXd(5.0, [0.0])])
+    offset = block.reference_offset_output.Eval(context)[0]
+    assert offset.derivatives()[0] == pytest.approx(-GAMMA * K * ALPHA)
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(gamma=0.0), "gamma"),
+        (dict(gamma=-1e-5), "gamma"),
+        (dict(alpha=-0.1), "alpha"),
+        (dict(stiffness=0.0), "stiffness"),
+        (dict(force_axes=[3]), "force_axes"),
+        (dict(force_axes=[]), "force_axes"),
+        (dict(period=-1.0), "period"),
+    ],
+)
+def test_bad_arguments_name_the_argument(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        _block(**kwargs)
