@@ -90,7 +90,9 @@ def BuildClosedLoop(scenario: Scenario, *, analysis: bool = False) -> ClosedLoop
     Args:
         scenario: a validated scenario.
         analysis: build for Linearize: no random source (the noise input is held at zero)
-            and no loggers, so that every system converts to AutoDiffXd.
+            and no loggers, so that every system converts to AutoDiffXd; Fr is the
+            diagram's input `force_reference` and the true and measured forces are its
+            outputs `contact_force` and `measured_force`.
     """
     builder = DiagramBuilder()
     plant, scene_graph = AddPlanarArm(builder, scenario)
@@ -176,9 +178,14 @@ def BuildClosedLoop(scenario: Scenario, *, analysis: bool = False) -> ClosedLoop
             )
         )
         admittance.set_name("optimal_admittance")
-        force_reference = builder.AddSystem(ConstantVectorSource([scenario.force_reference]))
-        force_reference.set_name("force_reference")
-        builder.Connect(force_reference.get_output_port(), admittance.desired_force_input)
+        if analysis:
+            # Fr is an input of the analysis diagram (fix it in the context), so that the
+            # linear model has Fr -> contact force.
+            builder.ExportInput(admittance.desired_force_input, "force_reference")
+        else:
+            force_reference = builder.AddSystem(ConstantVectorSource([scenario.force_reference]))
+            force_reference.set_name("force_reference")
+            builder.Connect(force_reference.get_output_port(), admittance.desired_force_input)
         builder.Connect(sensor.measured_force_output, admittance.measured_force_input)
         commanded = builder.AddSystem(Adder(2, 3))
         commanded.set_name("commanded_position")
@@ -189,7 +196,10 @@ def BuildClosedLoop(scenario: Scenario, *, analysis: bool = False) -> ClosedLoop
         builder.Connect(trajectory.desired_position_output, pid.commanded_position_input)
 
     loggers = {}
-    if not analysis:
+    if analysis:
+        builder.ExportOutput(wall.contact_force_output, "contact_force")
+        builder.ExportOutput(sensor.measured_force_output, "measured_force")
+    else:
         period = scenario.logging.period
         ports = {
             "state": plant.get_state_output_port(),
@@ -268,6 +278,8 @@ def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
     scenario = loop.scenario
     plant = loop.plant
     loop.diagram.SetRandomContext(context, RandomGenerator(int(scenario.seed)))
+    if loop.diagram.num_input_ports() > 0:  # the analysis diagram: Fr is an input
+        loop.diagram.get_input_port(0).FixValue(context, [scenario.force_reference])
     target = list(scenario.arm.initial_position)
     if not target:
         # Xd(0), but never inside the wall: a desired point behind the wall surface starts

@@ -1,10 +1,9 @@
 """The closed loop at its contact equilibrium, linearized with Drake's Linearize.
 
 For a constant desired position in contact the loop has one equilibrium: F = Fr, zero
-Cartesian error, the PID integral carrying gravity and the wall force. It is found by
-simulating the (noise-free) analysis diagram until it stops moving, then refined by Newton
-steps on the state derivative; the linear model is Drake's `Linearize` of the whole diagram
-(plant, PID, admittance, wall and sensor filter) there.
+Cartesian error, the PID integral carrying gravity and the wall force. It is constructed
+from the model and refined by Newton steps on the state derivative; the linear model is
+Drake's `Linearize` of the whole diagram (plant, PID, admittance, wall and sensor filter).
 """
 
 from __future__ import annotations
@@ -13,12 +12,17 @@ import copy
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Context
 from pydrake.systems.primitives import Linearize, LinearSystem
 
-from diagrams.closed_loop import BuildClosedLoop, ClosedLoop, SetInitialConditions
+from diagrams.closed_loop import (
+    WALL_NORMAL_AXIS,
+    BuildClosedLoop,
+    ClosedLoop,
+    SolvePlanarInverseKinematics,
+)
 from diagrams.scenario import Scenario, ScenarioError
+from systems.planar_kinematics import PlanarFrameKinematics
 
 __all__ = ["Equilibrium", "FindContactEquilibrium", "LinearizeAtEquilibrium", "static_scenario"]
 
@@ -48,25 +52,62 @@ def static_scenario(scenario: Scenario) -> Scenario:
     return frozen
 
 
-def FindContactEquilibrium(
-    scenario: Scenario, *, settle_time: float = 40.0, tolerance: float = 1e-8
-) -> Equilibrium:
-    """Settles the frozen scenario in contact and polishes the state with Newton steps.
+def FindContactEquilibrium(scenario: Scenario, *, tolerance: float = 1e-9) -> Equilibrium:
+    """The contact equilibrium of the frozen scenario, constructed from the model.
+
+    At equilibrium the tip rests at X = Xd with x moved to Xe + Fr/Ke (eq. 4 with F = Fr),
+    v = 0, the Cartesian error is zero so the PID's integral carries the whole wrench
+    (J^T Ki z = -tau_gravity + J^T (Fr, 0, 0)), the admittance offset is Xr = x - xd, and
+    the sensor's filter holds the voltage of Fr. The state is then polished by Newton steps
+    on dx/dt = 0. No simulation is involved, so unstable settings have an equilibrium too.
 
     Raises:
-        ScenarioError: the loop does not settle (unstable or no contact at the end).
+        ScenarioError: no equilibrium in contact (unreachable pose, or Newton fails).
     """
     frozen = static_scenario(scenario)
+    if not frozen.admittance.enabled:
+        raise ScenarioError("admittance.enabled: the contact equilibrium needs the admittance")
     loop = BuildClosedLoop(frozen, analysis=True)
-    simulator = Simulator(loop.diagram)
-    ApplySimulatorConfig(frozen.simulator, simulator)
-    context = simulator.get_mutable_context()
-    SetInitialConditions(loop, context)
-    simulator.Initialize()
-    simulator.AdvanceTo(settle_time)
+    plant, diagram = loop.plant, loop.diagram
+    context = diagram.CreateDefaultContext()
+    diagram.get_input_port(0).FixValue(context, [frozen.force_reference])
 
-    # Newton steps on f(x) = 0 with the Jacobian from Linearize (time is frozen at the end).
-    diagram = loop.diagram
+    center = np.array(frozen.trajectory.center, dtype=float)
+    pose = center.copy()
+    pose[WALL_NORMAL_AXIS] = frozen.wall.position + frozen.force_reference / frozen.wall.stiffness
+    try:
+        q = SolvePlanarInverseKinematics(
+            plant, frozen.arm.fingertip_frame, pose, frozen.arm.joint_guess
+        )
+    except ValueError as error:
+        raise ScenarioError(f"trajectory.center: {error}") from None
+    plant_context = plant.GetMyMutableContextFromRoot(context)
+    plant.SetPositions(plant_context, q)
+    plant.SetVelocities(plant_context, np.zeros(plant.num_velocities()))
+
+    gravity = plant.CalcGravityGeneralizedForces(plant_context)
+    kinematics = PlanarFrameKinematics(plant, frozen.arm.fingertip_frame)
+    kinematics.set_state(plant.GetPositionsAndVelocities(plant_context))
+    wall_force = np.zeros(3)
+    wall_force[WALL_NORMAL_AXIS] = frozen.force_reference
+    wrench = np.linalg.solve(kinematics.jacobian().T, -gravity) + wall_force
+    ki = np.asarray(frozen.pid.ki, dtype=float)
+    pid_context = loop.pid.GetMyMutableContextFromRoot(context)
+    loop.pid.set_integral(pid_context, np.divide(wrench, ki, out=np.zeros(3), where=ki > 0))
+
+    admittance = loop.admittance
+    admittance_context = admittance.GetMyMutableContextFromRoot(context)
+    admittance.set_initial_force_error(admittance_context, [frozen.force_reference])
+    offset = pose[WALL_NORMAL_AXIS] - center[WALL_NORMAL_AXIS]
+    admittance.set_integral(
+        admittance_context,
+        [offset / admittance.integral_gain[0] + frozen.admittance.alpha * frozen.force_reference],
+    )
+    if frozen.sensor.kind != "ideal":
+        loop.sensor.GetMyMutableContextFromRoot(context).SetContinuousState(
+            [loop.sensor.static_output_voltage(frozen.force_reference)]
+        )
+
     for _ in range(10):
         residual = _residual(diagram, context)
         if residual < tolerance:
@@ -77,12 +118,8 @@ def FindContactEquilibrium(
         step = np.linalg.lstsq(linear.A(), -xdot, rcond=None)[0]
         context.SetContinuousState(x + step)
     residual = _residual(diagram, context)
-    force = loop.wall.contact_force_output.Eval(loop.wall.GetMyContextFromRoot(context))[0]
-    if not np.isfinite(residual) or residual > 1e-6 or force <= 0:
-        raise ScenarioError(
-            f"scenario: the loop does not settle in contact (residual {residual:.3g}, "
-            f"force {force:.3g} N after {settle_time} s)"
-        )
+    if not np.isfinite(residual) or residual > 1e-6:
+        raise ScenarioError(f"scenario: no contact equilibrium found (residual {residual:.3g})")
     return Equilibrium(loop=loop, context=context, residual=residual)
 
 
