@@ -55,6 +55,19 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_stability(args: argparse.Namespace) -> int:
+    from diagrams.stability_report import MapAxes, analyse, format_report, write_report
+
+    scenario = load_scenario(args.scenario, args.overrides)
+    out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_stability"
+    axes = MapAxes.quick() if args.quick else MapAxes()
+    report = analyse(scenario, axes=axes, with_trajectory=not args.no_trajectory)
+    write_report(report, out)
+    print(format_report(report.summary), end="")
+    print(f"wrote {out}/: report.json, report.txt, eigenvalues, maps and V(t) as PNG")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="admittance",
@@ -66,6 +79,19 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scenario_arguments(simulate)
     simulate.add_argument("--out", help="output folder (default: results/<scenario name>)")
     simulate.set_defaults(handler=_cmd_simulate)
+
+    stability = commands.add_parser(
+        "stability",
+        help="linearize the loop at its contact equilibrium: eigenvalues, Lyapunov "
+        "certificate, eq. 13, critical Gamma and stability maps",
+    )
+    _add_scenario_arguments(stability)
+    stability.add_argument("--out", help="output folder (default: results/<scenario>_stability)")
+    stability.add_argument("--quick", action="store_true", help="coarse map grids")
+    stability.add_argument(
+        "--no-trajectory", action="store_true", help="skip V(t) along a simulated run"
+    )
+    stability.set_defaults(handler=_cmd_stability)
     return parser
 
 

@@ -84,7 +84,9 @@ def AddPlanarArm(builder: DiagramBuilder, scenario: Scenario):
     return plant, scene_graph
 
 
-def BuildClosedLoop(scenario: Scenario, *, analysis: bool = False) -> ClosedLoop:
+def BuildClosedLoop(
+    scenario: Scenario, *, analysis: bool = False, open_admittance_loop: bool = False
+) -> ClosedLoop:
     """Wires the paper's Fig. 1 for `scenario`.
 
     Args:
@@ -93,6 +95,9 @@ def BuildClosedLoop(scenario: Scenario, *, analysis: bool = False) -> ClosedLoop
             and no loggers, so that every system converts to AutoDiffXd; Fr is the
             diagram's input `force_reference` and the true and measured forces are its
             outputs `contact_force` and `measured_force`.
+        open_admittance_loop: (analysis only) leave the admittance block out and export the
+            commanded position's offset input as `reference_offset`: the loop the
+            admittance block closes, for the analysis of a sampled admittance block.
     """
     builder = DiagramBuilder()
     plant, scene_graph = AddPlanarArm(builder, scenario)
@@ -164,7 +169,15 @@ def BuildClosedLoop(scenario: Scenario, *, analysis: bool = False) -> ClosedLoop
     builder.Connect(trajectory.desired_velocity_output, pid.commanded_velocity_input)
 
     admittance = None
-    if scenario.admittance.enabled:
+    if open_admittance_loop:
+        if not analysis:
+            raise ValueError("open_admittance_loop is for analysis diagrams only")
+        commanded = builder.AddSystem(Adder(2, 3))
+        commanded.set_name("commanded_position")
+        builder.Connect(trajectory.desired_position_output, commanded.get_input_port(0))
+        builder.ExportInput(commanded.get_input_port(1), "reference_offset")
+        builder.Connect(commanded.get_output_port(), pid.commanded_position_input)
+    elif scenario.admittance.enabled:
         admittance_config = scenario.admittance
         admittance = builder.AddSystem(
             OptimalAdmittance(

@@ -8,9 +8,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import shutil
-import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -19,6 +16,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from diagrams.output import atomic_output_dir  # noqa: E402
 from diagrams.scenario import scenario_to_yaml  # noqa: E402
 from diagrams.simulation import SimulationResult  # noqa: E402
 
@@ -116,10 +114,7 @@ def write_csv(result: SimulationResult, path: Path) -> None:
 
 def write_results(result: SimulationResult, out_dir: str | Path) -> Path:
     """Writes a complete result folder atomically; returns its path."""
-    out_dir = Path(out_dir)
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
-    try:
+    with atomic_output_dir(out_dir) as staging:
         write_csv(result, staging / "timeseries.csv")
         (staging / "metrics.json").write_text(
             json.dumps(_json_safe(result.metrics), indent=2) + "\n"
@@ -131,17 +126,7 @@ def write_results(result: SimulationResult, out_dir: str | Path) -> Path:
             figure.tight_layout()
             figure.savefig(staging / name, dpi=110)
             plt.close(figure)
-        if out_dir.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old.", dir=out_dir.parent))
-            os.replace(out_dir, old / out_dir.name)
-            os.replace(staging, out_dir)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(staging, out_dir)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
-    return out_dir
+    return Path(out_dir)
 
 
 def summary(result: SimulationResult) -> str:

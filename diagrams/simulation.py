@@ -42,6 +42,7 @@ class SimulationResult:
     wall_position: np.ndarray  # (N,): Xe(t)
     wall_stiffness: np.ndarray  # (N,): Ke(t)
     joint_positions: np.ndarray  # (N, nq)
+    joint_velocities: np.ndarray  # (N, nv)
     wall_time: float
     integrator_steps: int
     derivative_evaluations: int
@@ -247,6 +248,7 @@ def run_scenario(scenario: Scenario, *, loop: ClosedLoop | None = None) -> Simul
         wall_position=np.array([loop.wall.position_at(t) for t in sample_times]),
         wall_stiffness=np.array([loop.wall.stiffness_at(t) for t in sample_times]),
         joint_positions=states[:, : loop.plant.num_positions()],
+        joint_velocities=states[:, loop.plant.num_positions() :],
         wall_time=wall_time,
         integrator_steps=int(integrator.get_num_steps_taken()),
         derivative_evaluations=int(integrator.get_num_derivative_evaluations()),

@@ -1,0 +1,272 @@
+"""`admittance stability`: the stability report of one scenario (JSON, text and figures)."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium  # noqa: E402
+from diagrams.output import atomic_output_dir  # noqa: E402
+from diagrams.scenario import Scenario  # noqa: E402
+from diagrams.simulation import run_scenario  # noqa: E402
+from diagrams.stability import (  # noqa: E402
+    critical_gamma,
+    linear_versus_nonlinear,
+    lyapunov_along_trajectory,
+    lyapunov_certificate,
+    modal_summary,
+    simulate_near_critical,
+    stability_map,
+    symbolic_eq13,
+    with_values,
+)
+
+__all__ = ["MapAxes", "StabilityReport", "analyse", "write_report"]
+
+
+@dataclass
+class MapAxes:
+    """The grids of the stability maps (Gamma on every map's x axis)."""
+
+    gamma: np.ndarray = field(default_factory=lambda: np.logspace(-7, -3, 17))
+    stiffness: np.ndarray = field(default_factory=lambda: np.logspace(3, 7, 13))
+    alpha: np.ndarray = field(default_factory=lambda: np.array([0, 0.01, 0.03, 0.1, 0.3, 1.0]))
+    filter_cutoff: np.ndarray = field(default_factory=lambda: np.logspace(2, 4.5, 11))
+    period: np.ndarray = field(default_factory=lambda: np.logspace(-5, -2, 10))
+
+    @classmethod
+    def quick(cls) -> MapAxes:
+        """Coarse grids for tests and notebooks."""
+        return cls(
+            gamma=np.logspace(-7, -3, 5),
+            stiffness=np.logspace(3, 7, 3),
+            alpha=np.array([0.0, 0.1, 1.0]),
+            filter_cutoff=np.array([1e2, 1e3, 1e4]),
+            period=np.array([1e-4, 1e-3, 1e-2]),
+        )
+
+
+MAPS = {
+    # name: (y key, MapAxes field, y label, overrides for the map)
+    "gamma_vs_stiffness": ("wall.stiffness", "stiffness", "Ke (N/m)", {}),
+    "gamma_vs_alpha": ("admittance.alpha", "alpha", "alpha (s)", {}),
+    "gamma_vs_filter_cutoff": (
+        "sensor.filter_cutoff",
+        "filter_cutoff",
+        "sensor filter cut-off (Hz)",
+        {"sensor.kind": "flexiforce"},
+    ),
+    "gamma_vs_period": ("admittance.period", "period", "admittance period (s)", {}),
+}
+
+
+@dataclass
+class StabilityReport:
+    scenario: Scenario
+    summary: dict
+    maps: dict[str, np.ndarray]
+    axes: MapAxes
+    trajectory: dict | None
+    step: object
+
+
+def analyse(
+    scenario: Scenario, *, axes: MapAxes | None = None, with_trajectory: bool = True
+) -> StabilityReport:
+    """Everything `admittance stability` reports for `scenario`."""
+    axes = axes or MapAxes()
+    summary: dict = {"scenario": scenario.name, "eq13": symbolic_eq13()}
+    equilibrium = FindContactEquilibrium(scenario)
+    A = LinearizeAtEquilibrium(equilibrium).A()
+    summary["equilibrium_residual"] = equilibrium.residual
+    summary["num_states"] = int(A.shape[0])
+    summary["modes"] = modal_summary(A)
+    certificate = lyapunov_certificate(A)
+    certificate.pop("P", None)
+    summary["lyapunov"] = certificate
+
+    step = linear_versus_nonlinear(scenario, step=0.1)
+    summary["linear_versus_nonlinear"] = {
+        "step_N": 0.1,
+        "max_difference_N": float(np.max(np.abs(step.linear - step.nonlinear))),
+        "relative_to_step": float(np.max(np.abs(step.linear - step.nonlinear)) / 0.1),
+    }
+
+    gamma_critical = critical_gamma(scenario)
+    summary["critical_gamma"] = gamma_critical
+    summary["gamma"] = scenario.admittance.gamma
+    if gamma_critical is not None:
+        summary["gamma_margin"] = gamma_critical / scenario.admittance.gamma
+        summary["confirmation"] = {
+            "below": simulate_near_critical(scenario, 0.8 * gamma_critical),
+            "above": simulate_near_critical(scenario, 1.25 * gamma_critical),
+        }
+
+    maps = {}
+    for name, (key, axis, _, overrides) in MAPS.items():
+        base = with_values(scenario, overrides) if overrides else scenario
+        maps[name] = stability_map(base, "admittance.gamma", axes.gamma, key, getattr(axes, axis))
+
+    trajectory = None
+    if with_trajectory:
+        result = run_scenario(scenario)
+        trajectory = lyapunov_along_trajectory(result)
+        summary["lyapunov_along_trajectory"] = {
+            "monotone_after_contact": trajectory["monotone_after_contact"],
+            "growing_fraction": trajectory["growing_fraction"],
+            "growing_intervals": trajectory["growing_intervals"][:50],
+            "growing_intervals_total": len(trajectory["growing_intervals"]),
+        }
+    return StabilityReport(scenario, summary, maps, axes, trajectory, step)
+
+
+def format_report(summary: dict) -> str:
+    modes = summary["modes"]
+    lyapunov = summary["lyapunov"]
+    eq13 = summary["eq13"]
+    lines = [
+        f"Stability of scenario {summary['scenario']}",
+        "",
+        "Eq. 13 (pydrake.symbolic, per axis):",
+        f"  dI/dXr = -K (E + alpha dE/dt): {eq13['dI_dXr_equals_minus_K_weighted_error']}",
+        "  corrected law dXr/dt = +Gamma K (E + alpha dE/dt) gives "
+        f"dV/dt = -(E + alpha dE/dt)^2 K Gamma K: {summary['eq13']['corrected_identity']}",
+        "  printed eq. 10 (minus sign) gives dV/dt = +(E + alpha dE/dt)^2 K Gamma K: "
+        f"{summary['eq13']['printed_sign_grows']}",
+        "",
+        f"Linearized closed loop at the contact equilibrium ({summary['num_states']} states, "
+        f"residual {summary['equilibrium_residual']:.2g}):",
+        f"  stable: {modes['stable']} (max real part {modes['max_real_part']:.4g} 1/s)",
+        f"  slowest time constant {modes['slowest_time_constant']:.4g} s, fastest "
+        f"{modes['fastest_time_constant']:.3g} s, least damping ratio "
+        f"{modes['least_damped_ratio']:.3g}",
+        "  eigenvalues (1/s):",
+    ]
+    for (real, imag), zeta in zip(modes["eigenvalues"], modes["damping_ratios"], strict=True):
+        lines.append(f"    {real:14.6g} {imag:+14.6g} j   damping {zeta:.3g}")
+    if lyapunov.get("positive_definite"):
+        lines.append(
+            "Lyapunov: A^T P + P A = -I has P > 0 (min eigenvalue "
+            f"{lyapunov['min_eigenvalue']:.3g}, condition number "
+            f"{lyapunov['condition_number']:.3g})"
+        )
+    else:
+        lines.append(f"Lyapunov: no positive definite P ({lyapunov.get('error', 'P not > 0')})")
+    comparison = summary["linear_versus_nonlinear"]
+    lines.append(
+        f"Linear vs nonlinear, Fr step of {comparison['step_N']} N: max difference "
+        f"{comparison['max_difference_N']:.3g} N ({100 * comparison['relative_to_step']:.3g} % "
+        "of the step)"
+    )
+    critical = summary["critical_gamma"]
+    if critical is None:
+        lines.append("Critical Gamma: none up to 1e-2 (the linearized loop stays stable)")
+    else:
+        confirmation = summary["confirmation"]
+        lines.append(
+            f"Critical Gamma {critical:.4g} ({summary['gamma_margin']:.3g} x the scenario's "
+            f"{summary['gamma']:.3g}); nonlinear check: at 0.8 x converges = "
+            f"{confirmation['below']['converges']}, at 1.25 x converges = "
+            f"{confirmation['above']['converges']} (contact lost at "
+            f"{confirmation['above']['contact_lost_time']} s)"
+        )
+    trajectory = summary.get("lyapunov_along_trajectory")
+    if trajectory:
+        lines.append(
+            f"V = 1/2 (E + alpha dE/dt)^2 along the run: monotone after contact = "
+            f"{trajectory['monotone_after_contact']}; grows on "
+            f"{trajectory['growing_intervals_total']} intervals, "
+            f"{100 * trajectory['growing_fraction']:.3g} % of the time"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _plot_map(report: StabilityReport, name: str, path: Path) -> None:
+    key, axis, label, _ = MAPS[name]
+    grid = report.maps[name]
+    y = getattr(report.axes, axis)
+    figure, ax = plt.subplots(figsize=(7, 5))
+    y_plot = y if np.all(y > 0) else np.arange(len(y))
+    mesh = ax.pcolormesh(
+        report.axes.gamma,
+        y_plot,
+        np.sign(grid) * np.log10(1 + np.abs(grid) / 0.01),
+        cmap="RdBu_r",
+        vmin=-6,
+        vmax=6,
+        shading="nearest",
+    )
+    ax.contour(report.axes.gamma, y_plot, grid, levels=[0.0], colors="k")
+    ax.set_xscale("log")
+    if np.all(y > 0):
+        ax.set_yscale("log")
+    else:
+        ax.set_yticks(np.arange(len(y)), [f"{v:g}" for v in y])
+    ax.axvline(report.scenario.admittance.gamma, color="g", ls="--", label="scenario Gamma")
+    ax.set_xlabel("Gamma")
+    ax.set_ylabel(label)
+    ax.set_title(f"{name}\nmax Re(eig): blue stable, red unstable, black boundary", fontsize=10)
+    ax.legend(loc="lower left")
+    figure.colorbar(mesh, label="sign(s) log10(1 + |s| / 0.01), s = max Re(eig) (1/s)")
+    figure.tight_layout()
+    figure.savefig(path, dpi=100)
+    plt.close(figure)
+
+
+def write_report(report: StabilityReport, out_dir: str | Path) -> Path:
+    """Writes report.json, report.txt and the figures atomically into `out_dir`."""
+    with atomic_output_dir(out_dir) as staging:
+        data = dict(report.summary)
+        data["maps"] = {
+            name: {
+                "gamma": report.axes.gamma.tolist(),
+                MAPS[name][0]: getattr(report.axes, MAPS[name][1]).tolist(),
+                "max_real_part": [[None if math.isnan(v) else v for v in row] for row in grid],
+            }
+            for name, grid in report.maps.items()
+        }
+        (staging / "report.json").write_text(json.dumps(data, indent=2, default=float) + "\n")
+        (staging / "report.txt").write_text(format_report(report.summary))
+        for name in report.maps:
+            _plot_map(report, name, staging / f"map_{name}.png")
+        eigenvalues = np.array(report.summary["modes"]["eigenvalues"])
+        figure, ax = plt.subplots(figsize=(6, 4))
+        ax.scatter(eigenvalues[:, 0], eigenvalues[:, 1], marker="x")
+        ax.set_xscale("symlog", linthresh=1.0)
+        ax.set_xlabel("Re (1/s)")
+        ax.set_ylabel("Im (rad/s)")
+        ax.set_title("closed-loop eigenvalues at the contact equilibrium")
+        ax.grid(True, alpha=0.3)
+        figure.tight_layout()
+        figure.savefig(staging / "eigenvalues.png", dpi=100)
+        plt.close(figure)
+        figure, ax = plt.subplots(figsize=(7, 4))
+        ax.plot(report.step.time, report.step.nonlinear, label="nonlinear diagram")
+        ax.plot(report.step.time, report.step.linear, "--", label="Linearize")
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel("contact force change (N)")
+        ax.set_title("response to a 0.1 N step of Fr")
+        ax.legend()
+        ax.grid(True, alpha=0.3)
+        figure.tight_layout()
+        figure.savefig(staging / "step_linear_vs_nonlinear.png", dpi=100)
+        plt.close(figure)
+        if report.trajectory is not None:
+            figure, ax = plt.subplots(figsize=(7, 4))
+            ax.semilogy(report.trajectory["time"], report.trajectory["V"] + 1e-12)
+            ax.set_xlabel("time (s)")
+            ax.set_ylabel("V = 1/2 (E + alpha dE/dt)^2 (N^2)")
+            ax.set_title("the paper's Lyapunov function along the run")
+            ax.grid(True, alpha=0.3)
+            figure.tight_layout()
+            figure.savefig(staging / "lyapunov_along_trajectory.png", dpi=100)
+            plt.close(figure)
+    return Path(out_dir)

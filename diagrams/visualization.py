@@ -1,0 +1,349 @@
+"""Pictures of a run and of the loop: a Meshcat HTML replay and the Graphviz diagram.
+
+* :func:`write_meshcat_replay` turns a finished run (a ``SimulationResult``) into one
+  self-contained HTML file: the arm, the wall at Xe(t) and the contact force as an arrow,
+  animated in a 2-D view of the x-y plane. It is built after the run from the logged data,
+  on a small diagram of its own (plant + SceneGraph + MeshcatVisualizer), so the simulated
+  loop never carries a visualizer (style.md: analysis diagrams stay visualizer-free).
+* :func:`write_diagram_picture` writes the closed loop's Graphviz rendering (the paper's
+  Fig. 1) as SVG or PNG, or its DOT source.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+import uuid
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import (
+    Box,
+    Meshcat,
+    MeshcatCone,
+    MeshcatParams,
+    MeshcatVisualizer,
+    MeshcatVisualizerParams,
+    Rgba,
+    Role,
+    Sphere,
+)
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.tree import BodyIndex
+from pydrake.systems.framework import Diagram, DiagramBuilder
+
+from diagrams.closed_loop import AddPlanarArm
+from diagrams.simulation import SimulationResult
+
+__all__ = [
+    "DIAGRAM_PICTURE_SUFFIXES",
+    "DiagramPictureError",
+    "write_diagram_picture",
+    "write_meshcat_replay",
+]
+
+# ---------------------------------------------------------------------------- replay
+
+# Frames per second of simulated time in the replay (it plays back in real time). A power of
+# two, so that frame k's time k / fps is exact and Meshcat's frame(time) = floor(time * fps)
+# gives back k (with 50 fps, 29 / 50 * 50 = 28.999... would land on frame 28).
+REPLAY_FRAMES_PER_SECOND = 32.0
+# Length of the force arrow per newton of contact force, m/N ...
+FORCE_ARROW_METERS_PER_NEWTON = 0.01
+# ... unless the peak force would draw longer than this, m: then the scale shrinks so that
+# the peak fits (the arrow stays proportional to the force within one replay).
+FORCE_ARROW_MAX_LENGTH = 0.25
+# Margin around everything drawn, m.
+VIEW_MARGIN = 0.05
+# The view shows its whole x range in any window at least this many times wider than tall.
+VIEW_ASPECT = 1.4
+# Wall slab thickness along x, m (it spans the view's height).
+WALL_THICKNESS = 0.03
+# Heights (world z) at which the overlays are drawn: the camera looks down -z, so a larger
+# z is drawn on top. The arm's drive cylinders reach z = 0.055.
+WALL_Z = 0.0
+FORCE_Z = 0.08
+# Paths in the Meshcat scene tree.
+WALL_PATH = "/replay/wall"
+FORCE_PATH = "/replay/force"
+FORCE_REFERENCE_PATH = "/replay/force_reference"
+COMMANDED_PATH = "/replay/commanded_position"
+
+_WALL_COLOR = Rgba(0.55, 0.42, 0.30, 0.75)
+_FORCE_COLOR = Rgba(0.85, 0.10, 0.10, 1.0)
+_REFERENCE_COLOR = Rgba(0.10, 0.45, 0.85, 0.9)
+_COMMANDED_COLOR = Rgba(0.10, 0.60, 0.20, 0.9)
+
+_ARROW_SHAFT_WIDTH = 0.008
+_ARROW_HEAD_LENGTH = 0.02
+_ARROW_HEAD_RADIUS = 0.012
+# A zero-length shaft is drawn with this scale (three.js dislikes a singular scale).
+_TINY_SCALE = 1e-4
+
+
+def _staging_path(path: Path) -> Path:
+    """A new hidden sibling of `path`, to write into before moving it onto `path`.
+
+    (Unlike tempfile's files, it gets the usual permissions of a new file.)
+    """
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}{path.suffix}")
+
+
+def _write_atomically(path: Path, data: bytes) -> None:
+    """Writes `data` to a sibling file, then moves it onto `path`: no half-written file."""
+    staging = _staging_path(path)
+    try:
+        staging.write_bytes(data)
+        os.replace(staging, path)
+    finally:
+        staging.unlink(missing_ok=True)
+
+
+def _frame_times(time: np.ndarray) -> np.ndarray:
+    """Replay times k / fps over the logged span, for consecutive integers k."""
+    first = math.ceil(float(time[0]) * REPLAY_FRAMES_PER_SECOND - 1e-9)
+    last = math.floor(float(time[-1]) * REPLAY_FRAMES_PER_SECOND + 1e-9)
+    return np.arange(first, max(last, first + 1) + 1) / REPLAY_FRAMES_PER_SECOND
+
+
+def _interpolate(time: np.ndarray, values: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Linear interpolation of the columns of `values` (N,) or (N, k) at times `at`."""
+    if values.ndim == 1:
+        return np.interp(at, time, values)
+    return np.column_stack([np.interp(at, time, column) for column in values.T])
+
+
+def _view_bounds(points_xy: np.ndarray) -> tuple[float, float, float, float]:
+    """(xmin, xmax, ymin, ymax) around `points_xy`, with a margin and a landscape aspect.
+
+    Meshcat fits the y range to the window's height and centres the x range; the y range is
+    widened so that the x range fits any window at least VIEW_ASPECT times wider than tall.
+    """
+    low = points_xy.min(axis=0) - VIEW_MARGIN
+    high = points_xy.max(axis=0) + VIEW_MARGIN
+    center = 0.5 * (low + high)
+    half_height = max(0.5 * (high[1] - low[1]), 0.5 * (high[0] - low[0]) / VIEW_ASPECT)
+    bottom, top = center[1] - half_height, center[1] + half_height
+    return float(low[0]), float(high[0]), float(bottom), float(top)
+
+
+def write_meshcat_replay(result: SimulationResult, path: str | os.PathLike) -> Path:
+    """Writes a self-contained HTML replay of a finished run, viewable offline.
+
+    The arm (illustration geometry of the scenario's URDF) is posed at the logged joint
+    positions, REPLAY_FRAMES_PER_SECOND frames per simulated second; the wall is a slab whose
+    face is at Xe(t); a red arrow from the fingertip into the wall has a length proportional
+    to the true contact force (FORCE_ARROW_METERS_PER_NEWTON, less if the peak would not
+    fit), a blue tick marks the length of Fr on the same scale, and a green dot marks the
+    commanded position Xc = Xd + Xr. The view is orthographic onto the x-y plane: +x to the
+    right, +y (against gravity) up, scaled to fit the window's height. The animation plays
+    once, in real time, when the file is opened and holds its last frame; Meshcat's "Open
+    Controls" menu (Animations) plays it again, pauses it, changes its speed or scrubs it.
+
+    The replay is made on a diagram of its own (the scenario's arm, a SceneGraph and a
+    MeshcatVisualizer on a Meshcat served on localhost for the time of the call).
+
+    Args:
+        result: a finished run (``run_scenario``).
+        path: the HTML file to write; its folder is created if needed.
+
+    Returns:
+        The path written.
+    """
+    path = Path(path)
+    scenario = result.scenario
+    times = _frame_times(result.time)
+    joint_positions = _interpolate(result.time, result.joint_positions, times)
+    tip_xy = _interpolate(result.time, result.pose[:, :2], times)
+    wall_position = _interpolate(result.time, result.wall_position, times)
+    force = np.maximum(_interpolate(result.time, result.force, times), 0.0)
+    commanded_xy = _interpolate(
+        result.time, (result.desired_position + result.reference_offset)[:, :2], times
+    )
+    peak_force = float(force.max())
+    meters_per_newton = FORCE_ARROW_METERS_PER_NEWTON
+    if peak_force * meters_per_newton > FORCE_ARROW_MAX_LENGTH:
+        meters_per_newton = FORCE_ARROW_MAX_LENGTH / peak_force
+    arrow_length = force * meters_per_newton
+    reference_length = scenario.force_reference * meters_per_newton
+
+    builder = DiagramBuilder()
+    plant, scene_graph = AddPlanarArm(builder, scenario)
+    meshcat = Meshcat(MeshcatParams(host="localhost"))
+    visualizer = MeshcatVisualizer.AddToBuilder(
+        builder,
+        scene_graph,
+        meshcat,
+        MeshcatVisualizerParams(
+            role=Role.kIllustration, publish_period=1.0 / REPLAY_FRAMES_PER_SECOND
+        ),
+    )
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    plant_context = plant.GetMyMutableContextFromRoot(context)
+
+    # Fit the view around everything drawn: every body of the arm over the run, the wall's
+    # face, the longest arrow and the commanded position.
+    bodies = [plant.get_body(BodyIndex(index)) for index in range(1, plant.num_bodies())]
+    points = [tip_xy, commanded_xy, np.column_stack([wall_position, tip_xy[:, 1]])]
+    points.append(np.column_stack([tip_xy[:, 0] + arrow_length, tip_xy[:, 1]]))
+    for q in joint_positions:
+        plant.SetPositions(plant_context, q)
+        points.append(
+            np.array(
+                [plant.EvalBodyPoseInWorld(plant_context, b).translation()[:2] for b in bodies]
+            )
+        )
+    xmin, xmax, ymin, ymax = _view_bounds(np.vstack(points))
+
+    # The overlays; their poses are animated below. The wall spans the view's height.
+    wall_height = (ymax - ymin) + 2.0 * VIEW_MARGIN
+    meshcat.SetObject(WALL_PATH, Box(WALL_THICKNESS, wall_height, 0.02), _WALL_COLOR)
+    meshcat.SetObject(
+        f"{FORCE_PATH}/shaft", Box(1.0, _ARROW_SHAFT_WIDTH, _ARROW_SHAFT_WIDTH), _FORCE_COLOR
+    )
+    meshcat.SetObject(
+        f"{FORCE_PATH}/head",
+        MeshcatCone(_ARROW_HEAD_LENGTH, _ARROW_HEAD_RADIUS, _ARROW_HEAD_RADIUS),
+        _FORCE_COLOR,
+    )
+    meshcat.SetObject(FORCE_REFERENCE_PATH, Box(0.003, 0.04, 0.003), _REFERENCE_COLOR)
+    meshcat.SetObject(COMMANDED_PATH, Sphere(0.005), _COMMANDED_COLOR)
+    # The cone's apex is at its origin and it opens along +z: turned to open along -x, its
+    # apex points along +x, the direction of the force the fingertip applies to the wall.
+    R_head = RotationMatrix.MakeYRotation(-math.pi / 2)
+    wall_y = 0.5 * (ymin + ymax)
+
+    animation = visualizer.StartRecording(set_transforms_while_recording=False)
+    for t, q, tip, xe, length, xc in zip(
+        times, joint_positions, tip_xy, wall_position, arrow_length, commanded_xy, strict=True
+    ):
+        context.SetTime(float(t))
+        plant.SetPositions(plant_context, q)
+        diagram.ForcedPublish(context)
+        frame = animation.frame(float(t))
+        animation.SetTransform(
+            frame, WALL_PATH, RigidTransform([xe + 0.5 * WALL_THICKNESS, wall_y, WALL_Z])
+        )
+        # Arrow from the fingertip, apex at tip + length: shaft up to the head's base, and a
+        # head shrunk with the arrow when the arrow is shorter than the head.
+        head_scale = min(1.0, length / _ARROW_HEAD_LENGTH)
+        shaft = max(length - _ARROW_HEAD_LENGTH, _TINY_SCALE)
+        animation.SetProperty(frame, FORCE_PATH, "visible", bool(length > _TINY_SCALE))
+        animation.SetTransform(
+            frame, f"{FORCE_PATH}/shaft", RigidTransform([tip[0] + 0.5 * shaft, tip[1], FORCE_Z])
+        )
+        animation.SetProperty(frame, f"{FORCE_PATH}/shaft", "scale", [shaft, 1.0, 1.0])
+        animation.SetTransform(
+            frame, f"{FORCE_PATH}/head", RigidTransform(R_head, [tip[0] + length, tip[1], FORCE_Z])
+        )
+        animation.SetProperty(
+            frame, f"{FORCE_PATH}/head", "scale", [max(head_scale, _TINY_SCALE)] * 3
+        )
+        animation.SetTransform(
+            frame,
+            FORCE_REFERENCE_PATH,
+            RigidTransform([tip[0] + reference_length, tip[1], FORCE_Z + 0.001]),
+        )
+        animation.SetTransform(
+            frame, COMMANDED_PATH, RigidTransform([xc[0], xc[1], FORCE_Z - 0.002])
+        )
+    visualizer.StopRecording()
+    visualizer.PublishRecording()
+
+    # Camera above the plane looking down -z (its +y axis) with world +y up (its +z axis):
+    # its x axis is then world +x, drawn to the right.
+    X_WC = RigidTransform(RotationMatrix.MakeXRotation(-math.pi / 2), [0.0, 0.0, 1.0])
+    meshcat.Set2dRenderMode(X_WC=X_WC, xmin=xmin, xmax=xmax, ymin=ymin, ymax=ymax)
+
+    _write_atomically(path, meshcat.StaticHtml().encode("utf-8"))
+    return path
+
+
+# ---------------------------------------------------------------------- diagram picture
+
+#: File suffixes that `write_diagram_picture` understands.
+DIAGRAM_PICTURE_SUFFIXES = (".svg", ".png", ".dot")
+# Longest a Graphviz render may take, s (the closed loop takes well under one).
+RENDER_TIMEOUT = 60.0
+
+
+class DiagramPictureError(RuntimeError):
+    """The diagram cannot be rendered to the requested file (one-line message)."""
+
+
+def _graphviz_command() -> str | None:
+    """A Graphviz layout command: graphviz-pure (a dependency) or a system ``dot``."""
+    for folder in (Path(sys.executable).parent, Path(sysconfig.get_path("scripts"))):
+        candidate = folder / "graphviz-pure"
+        if candidate.is_file() and os.access(candidate, os.X_OK):
+            return str(candidate)
+    return shutil.which("graphviz-pure") or shutil.which("dot")
+
+
+def write_diagram_picture(diagram: Diagram, path: str | os.PathLike) -> Path:
+    """Writes the Graphviz rendering of `diagram` (subsystems one level deep).
+
+    The format follows the suffix: ``.svg`` or ``.png`` are rendered with the
+    ``graphviz-pure`` command (a dependency of this project; a system ``dot`` also works),
+    ``.dot`` is the plain DOT source, which needs no renderer.
+
+    Args:
+        diagram: a built Diagram, e.g. ``BuildClosedLoop(scenario).diagram``.
+        path: the file to write; its folder is created if needed.
+
+    Returns:
+        The path written.
+
+    Raises:
+        ValueError: the suffix is not one of DIAGRAM_PICTURE_SUFFIXES.
+        DiagramPictureError: no renderer is installed, or it failed.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in DIAGRAM_PICTURE_SUFFIXES:
+        raise ValueError(
+            f"diagram picture {path.name!r}: the suffix must be one of "
+            f"{', '.join(DIAGRAM_PICTURE_SUFFIXES)}"
+        )
+    source = diagram.GetGraphvizString(max_depth=1)
+    if suffix == ".dot":
+        _write_atomically(path, source.encode("utf-8"))
+        return path
+
+    command = _graphviz_command()
+    if command is None:
+        raise DiagramPictureError(
+            f"cannot render {path.name}: no Graphviz command found (pip install graphviz-pure, "
+            "or write the DOT source with a .dot suffix)"
+        )
+    # Render into a sibling temporary file, then move it into place: a failed render leaves
+    # no half-written picture.
+    staging = _staging_path(path)
+    renderer = Path(command).name
+    try:
+        try:
+            completed = subprocess.run(
+                [command, f"-T{suffix[1:]}", "-o", str(staging)],
+                input=source.encode("utf-8"),
+                capture_output=True,
+                timeout=RENDER_TIMEOUT,
+                check=False,
+            )
+        except (OSError, subprocess.TimeoutExpired) as error:
+            raise DiagramPictureError(
+                f"cannot render {path.name}: {renderer} did not run: {error}"
+            ) from None
+        if completed.returncode != 0 or not staging.is_file() or staging.stat().st_size == 0:
+            message = completed.stderr.decode("utf-8", "replace").strip().splitlines()
+            detail = message[-1] if message else f"exit status {completed.returncode}"
+            raise DiagramPictureError(f"cannot render {path.name}: {renderer} failed: {detail}")
+        os.replace(staging, path)
+    finally:
+        staging.unlink(missing_ok=True)
+    return path

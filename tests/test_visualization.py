@@ -1,0 +1,228 @@
+"""The Meshcat replay of a run and the Graphviz picture of the loop (diagrams/visualization.py).
+
+The replay is checked by decoding the Meshcat commands stored in the HTML: the animation
+must pose the arm at the logged joint positions, put the wall's face at Xe(t) and draw the
+force arrow with a length proportional to the force, in a 2-D view of the x-y plane.
+"""
+
+from __future__ import annotations
+
+import base64
+import re
+import struct
+
+import msgpack
+import numpy as np
+import pytest
+from pydrake.systems.framework import DiagramBuilder
+
+import diagrams.visualization as visualization
+from diagrams.closed_loop import AddPlanarArm, BuildClosedLoop
+from diagrams.scenario import load_scenario
+from diagrams.simulation import run_scenario
+from diagrams.visualization import (
+    DiagramPictureError,
+    write_diagram_picture,
+    write_meshcat_replay,
+)
+
+# The paper's Fig. 1 blocks, as named by BuildClosedLoop, and some of their ports.
+FIG1_BLOCKS = [
+    "desired_trajectory",
+    "optimal_admittance",
+    "commanded_position",
+    "cartesian_pid",
+    "plant",
+    "compliant_wall",
+    "flexiforce_sensor",
+    "force_reference",
+]
+FIG1_PORTS = ["measured_force", "desired_force", "reference_offset", "actuation", "contact_force"]
+
+_DATA_COMMAND = re.compile(r'fetch\("data:application/octet-binary;base64,([A-Za-z0-9+/=]*)"\)')
+
+
+@pytest.fixture(scope="module")
+def moving_wall_result():
+    """Half a second of the moving-wall run, the wall moving from 0.1 s to 0.4 s."""
+    overrides = ["duration=0.5", "wall.motion_start=0.1", "wall.motion_end=0.4"]
+    return run_scenario(load_scenario("paper_moving_wall", overrides))
+
+
+@pytest.fixture(scope="module")
+def replay(moving_wall_result, tmp_path_factory):
+    """(path, html, decoded Meshcat commands) of the run's replay."""
+    path = tmp_path_factory.mktemp("replay") / "sub" / "replay.html"
+    written = write_meshcat_replay(moving_wall_result, path)
+    assert written == path
+    html = path.read_text(encoding="utf-8")
+    commands = [
+        msgpack.unpackb(base64.b64decode(data), strict_map_key=False)
+        for data in _DATA_COMMAND.findall(html)
+    ]
+    return path, html, commands
+
+
+def _tracks(commands) -> dict[tuple[str, str], list[dict]]:
+    """(path, property) -> keyframes of the one recorded animation."""
+    (animation,) = [c for c in commands if c["type"] == "set_animation"]
+    return {
+        (entry["path"], track["name"].lstrip(".")): track["keys"]
+        for entry in animation["animations"]
+        for track in entry["clip"]["tracks"]
+    }
+
+
+def test_replay_html_is_self_contained(replay):
+    path, html, commands = replay
+    assert path.is_file() and html.lstrip().startswith("<!DOCTYPE html>")
+    # The Meshcat viewer itself is inlined ...
+    assert "MeshCat" in html and len(html) > 500_000
+    # ... no tag loads anything ...
+    for tag in re.findall(r"<(?:script|link|img|iframe|source|embed)\b[^>]*>", html, re.I):
+        assert not re.search(r"\b(?:src|href)\s*=", tag, re.I), tag
+    # ... and every command is fetched from a data: URL, not from a server.
+    fetched = re.findall(r'fetch\(\s*["\']([^"\']*)', html)
+    assert fetched and all(url.startswith("data:") for url in fetched)
+    assert len(commands) == len([url for url in fetched if "octet-binary" in url]) > 10
+
+
+def test_replay_poses_the_arm_at_the_logged_joint_positions(replay, moving_wall_result):
+    _, _, commands = replay
+    tracks = _tracks(commands)
+    times = visualization._frame_times(moving_wall_result.time)
+    assert times[0] == 0.0 and times[-1] == pytest.approx(0.5)
+    assert len(times) == 0.5 * visualization.REPLAY_FRAMES_PER_SECOND + 1
+
+    builder = DiagramBuilder()
+    plant, _ = AddPlanarArm(builder, moving_wall_result.scenario)
+    context = plant.CreateDefaultContext()
+    arm_paths = [path for path, prop in tracks if "planar_arm/link" in path and prop == "position"]
+    assert sorted(p.rsplit("/", 1)[-1] for p in arm_paths) == ["link1", "link2", "link3"]
+    for frame in (0, len(times) // 2, len(times) - 1):
+        q = [
+            np.interp(times[frame], moving_wall_result.time, column)
+            for column in moving_wall_result.joint_positions.T
+        ]
+        plant.SetPositions(context, q)
+        for arm_path in arm_paths:
+            keys = tracks[(arm_path, "position")]
+            assert [k["time"] for k in keys] == list(range(len(times)))
+            body = plant.GetBodyByName(arm_path.rsplit("/", 1)[-1])
+            expected = plant.EvalBodyPoseInWorld(context, body).translation()
+            np.testing.assert_allclose(keys[frame]["value"], expected, atol=1e-9)
+
+
+def test_replay_draws_the_wall_at_its_position_and_the_force_to_scale(replay, moving_wall_result):
+    _, _, commands = replay
+    tracks = _tracks(commands)
+    result = moving_wall_result
+    times = visualization._frame_times(result.time)
+
+    # The wall slab's face is at Xe(t), and it moves (1.5 mm between 0.1 s and 0.4 s).
+    wall = tracks[(visualization.WALL_PATH, "position")]
+    face = np.array([k["value"][0] for k in wall]) - 0.5 * visualization.WALL_THICKNESS
+    np.testing.assert_allclose(face, np.interp(times, result.time, result.wall_position))
+    assert face[-1] - face[0] == pytest.approx(0.005 * 0.3)
+
+    # The arrow starts at the fingertip; its apex (the cone's origin) lies a force-
+    # proportional length further along +x; it is hidden while there is no force.
+    force = np.interp(times, result.time, result.force)
+    tip_x = np.interp(times, result.time, result.pose[:, 0])
+    head = np.array([k["value"] for k in tracks[(f"{visualization.FORCE_PATH}/head", "position")]])
+    length = head[:, 0] - tip_x
+    visible = [k["value"] for k in tracks[(visualization.FORCE_PATH, "visible")]]
+    assert force[0] == 0.0 and visible[0] is False
+    assert all(visible[1:]) and np.all(force[1:] > 1.0)
+    scale = length[1:] / force[1:]
+    np.testing.assert_allclose(scale, scale[0], rtol=1e-9)
+    assert 0.0 < scale[0] <= visualization.FORCE_ARROW_METERS_PER_NEWTON
+    assert np.max(length) <= visualization.FORCE_ARROW_MAX_LENGTH + 1e-12
+    # The Fr tick is drawn on the same scale.
+    tick = tracks[(visualization.FORCE_REFERENCE_PATH, "position")]
+    assert tick[-1]["value"][0] - tip_x[-1] == pytest.approx(scale[0] * result.force_reference)
+
+
+def test_replay_view_is_the_x_y_plane_with_x_right_and_y_up(replay, moving_wall_result):
+    _, _, commands = replay
+    (camera,) = [
+        c for c in commands if c["type"] == "set_object" and c["path"] == "/Cameras/default/rotated"
+    ]
+    camera = camera["object"]["object"]
+    assert camera["type"] == "OrthographicCamera"
+    (pose,) = [
+        c for c in commands if c["type"] == "set_transform" and c["path"] == "/Cameras/default"
+    ]
+    X_WC = np.array(pose["matrix"]).reshape(4, 4).T  # three.js matrices are column-major
+    # Drake's 2-D mode draws the camera's +x to the right and its +z up.
+    np.testing.assert_allclose(X_WC[:3, 0], [1, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(X_WC[:3, 2], [0, 1, 0], atol=1e-12)
+    # The view holds the whole arm (the base at the origin, the fingertip) and the wall.
+    left, right = X_WC[0, 3] + camera["left"], X_WC[0, 3] + camera["right"]
+    bottom, top = X_WC[1, 3] + camera["bottom"], X_WC[1, 3] + camera["top"]
+    x, y = moving_wall_result.pose[:, 0], moving_wall_result.pose[:, 1]
+    assert left < 0.0 < right and bottom < 0.0 < top
+    assert left < x.min() and x.max() + visualization.WALL_THICKNESS < right
+    assert bottom < y.min() and y.max() < top
+
+
+# ------------------------------------------------------------------- diagram picture
+
+
+@pytest.fixture(scope="module")
+def loop_diagram():
+    return BuildClosedLoop(load_scenario("paper_moving_wall")).diagram
+
+
+def test_diagram_dot_source_names_the_fig1_blocks(loop_diagram, tmp_path):
+    path = write_diagram_picture(loop_diagram, tmp_path / "loop.dot")
+    assert path == tmp_path / "loop.dot"
+    source = path.read_text()
+    assert source == loop_diagram.GetGraphvizString(max_depth=1)
+    assert source.startswith("digraph")
+    for name in FIG1_BLOCKS:
+        assert f"name={name}" in source
+
+
+def test_diagram_svg_names_the_fig1_blocks_and_ports(loop_diagram, tmp_path):
+    path = write_diagram_picture(loop_diagram, tmp_path / "pictures" / "loop.svg")
+    svg = path.read_text()
+    assert "<svg" in svg
+    for name in FIG1_BLOCKS:
+        assert f"name={name}" in svg
+    for port in FIG1_PORTS:
+        assert f">{port}<" in svg
+    assert [p.name for p in path.parent.iterdir()] == ["loop.svg"]  # no staging file left
+
+
+def test_diagram_png_is_a_picture(loop_diagram, tmp_path):
+    data = write_diagram_picture(loop_diagram, tmp_path / "loop.PNG").read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    width, height = struct.unpack(">II", data[16:24])
+    assert width > 1000 and height > 300
+
+
+def test_diagram_picture_refuses_an_unknown_suffix(loop_diagram, tmp_path):
+    with pytest.raises(ValueError, match=r"\.svg, \.png, \.dot"):
+        write_diagram_picture(loop_diagram, tmp_path / "loop.pdf")
+    assert not any(tmp_path.iterdir())
+
+
+def test_diagram_picture_without_a_renderer_says_so_in_one_line(
+    loop_diagram, tmp_path, monkeypatch
+):
+    monkeypatch.setattr(visualization, "_graphviz_command", lambda: None)
+    with pytest.raises(DiagramPictureError, match="pip install graphviz-pure") as error:
+        write_diagram_picture(loop_diagram, tmp_path / "loop.png")
+    assert "\n" not in str(error.value) and "loop.png" in str(error.value)
+    assert not any(tmp_path.iterdir())
+    # The DOT source needs no renderer.
+    assert write_diagram_picture(loop_diagram, tmp_path / "loop.dot").is_file()
+
+
+def test_diagram_picture_reports_a_failing_renderer(loop_diagram, tmp_path, monkeypatch):
+    monkeypatch.setattr(visualization, "_graphviz_command", lambda: "/bin/false")
+    with pytest.raises(DiagramPictureError, match="false failed") as error:
+        write_diagram_picture(loop_diagram, tmp_path / "loop.svg")
+    assert "\n" not in str(error.value)
+    assert not any(tmp_path.iterdir())
