@@ -52,6 +52,20 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     write_results(result, out)
     print(summary(result))
     print(f"wrote {out}/: timeseries.csv, metrics.json, scenario.yaml, fig5-7 PNG")
+    if args.meshcat_html:
+        from diagrams.visualization import write_meshcat_replay
+
+        print(f"wrote {write_meshcat_replay(result, args.meshcat_html)} (Meshcat replay)")
+    return 0
+
+
+def _cmd_diagram(args: argparse.Namespace) -> int:
+    from diagrams.closed_loop import BuildClosedLoop
+    from diagrams.visualization import write_diagram_picture
+
+    scenario = load_scenario(args.scenario, args.overrides)
+    loop = BuildClosedLoop(scenario)
+    print(f"wrote {write_diagram_picture(loop.diagram, args.out)}")
     return 0
 
 
@@ -78,7 +92,17 @@ def build_parser() -> argparse.ArgumentParser:
     simulate = commands.add_parser("simulate", help="run one scenario headless, write results")
     _add_scenario_arguments(simulate)
     simulate.add_argument("--out", help="output folder (default: results/<scenario name>)")
+    simulate.add_argument(
+        "--meshcat-html", metavar="FILE", help="also write a self-contained Meshcat replay"
+    )
     simulate.set_defaults(handler=_cmd_simulate)
+
+    diagram = commands.add_parser(
+        "diagram", help="draw the closed loop's block diagram (Graphviz: .svg, .png or .dot)"
+    )
+    _add_scenario_arguments(diagram)
+    diagram.add_argument("--out", required=True, help="output file: .svg, .png or .dot")
+    diagram.set_defaults(handler=_cmd_diagram)
 
     stability = commands.add_parser(
         "stability",
