@@ -15,6 +15,7 @@ from diagrams.scenario import ScenarioError, builtin_scenario_names, load_scenar
 
 DEFAULT_SCENARIO = "paper_stiffness_step"
 EXIT_INPUT_ERROR = 2
+EXIT_RUN_FAILED = 1
 
 
 class _Parser(argparse.ArgumentParser):
@@ -44,11 +45,17 @@ def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from diagrams.report import summary, write_results
-    from diagrams.simulation import run_scenario
+    from diagrams.simulation import SimulationDivergedError, run_scenario
 
     scenario = load_scenario(args.scenario, args.overrides)
     out = Path(args.out) if args.out else Path("results") / scenario.name
-    result = run_scenario(scenario)
+    try:
+        result = run_scenario(scenario)
+    except SimulationDivergedError as diverged:
+        # Keep what was logged, marked failed (metrics.json: "failed": true).
+        write_results(diverged.result, out)
+        print(f"admittance: error: {diverged} (partial, failed result in {out}/)", file=sys.stderr)
+        return EXIT_RUN_FAILED
     write_results(result, out)
     print(summary(result))
     print(f"wrote {out}/: timeseries.csv, metrics.json, scenario.yaml, fig5-7 PNG")

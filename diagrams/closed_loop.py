@@ -278,6 +278,34 @@ def SolvePlanarInverseKinematics(
     raise ValueError(f"the pose {target.tolist()} is not reachable from the seed {guess.tolist()}")
 
 
+def CheckTrajectoryReachable(loop: ClosedLoop, samples: int = 16) -> None:
+    """Rejects a desired trajectory the arm cannot reach, naming the point.
+
+    Samples Xd over one period of eq. 19 (and the pose pushed to the wall surface, which
+    the admittance block may ask for) and solves the inverse kinematics of each.
+
+    Raises:
+        ScenarioError: `trajectory.center` / `trajectory.amplitude` with the first point
+            out of reach.
+    """
+    scenario = loop.scenario
+    frequency = scenario.trajectory.frequency
+    period = 1.0 / frequency if frequency > 0 else 0.0
+    seed = scenario.arm.joint_guess
+    for k in range(samples if period > 0 else 1):
+        point = loop.trajectory.position_at(k * period / samples)
+        try:
+            seed = SolvePlanarInverseKinematics(
+                loop.plant, scenario.arm.fingertip_frame, point, seed
+            )
+        except ValueError:
+            where = ", ".join(f"{v:.4g}" for v in point)
+            raise ScenarioError(
+                f"trajectory.center, trajectory.amplitude: the desired point ({where}) is out "
+                "of the arm's reach"
+            ) from None
+
+
 def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
     """The arm at rest at the scenario's initial pose, held against gravity by its PID.
 
@@ -290,6 +318,7 @@ def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
     """
     scenario = loop.scenario
     plant = loop.plant
+    CheckTrajectoryReachable(loop)
     loop.diagram.SetRandomContext(context, RandomGenerator(int(scenario.seed)))
     if loop.diagram.num_input_ports() > 0:  # the analysis diagram: Fr is an input
         loop.diagram.get_input_port(0).FixValue(context, [scenario.force_reference])

@@ -354,7 +354,12 @@ def validate(scenario: Scenario) -> Scenario:
         s.force_reference,
     )
     w = s.wall
-    _require(finite(w.position), "wall.position", "finite (m)", w.position)
+    _require(
+        finite(w.position) and w.position > 0,
+        "wall.position",
+        "in front of the base (> 0 m along x)",
+        w.position,
+    )
     _require(finite(w.stiffness) and w.stiffness > 0, "wall.stiffness", "> 0 N/m", w.stiffness)
     previous = -math.inf
     for i, step in enumerate(w.stiffness_steps):

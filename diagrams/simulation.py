@@ -8,12 +8,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+from pydrake.systems.framework import EventStatus
 
 from diagrams.closed_loop import BuildClosedLoop, ClosedLoop, SetInitialConditions
 from diagrams.scenario import Scenario
 from systems.planar_kinematics import PlanarFrameKinematics
 
-__all__ = ["SimulationResult", "compute_metrics", "run_scenario"]
+__all__ = ["SimulationDivergedError", "SimulationResult", "compute_metrics", "run_scenario"]
 
 # Window over which "steady state" and "before an event" errors are averaged, s.
 STEADY_WINDOW = 1.0
@@ -209,18 +210,74 @@ def _log_data(loop: ClosedLoop, root_context, name: str):
     return log.sample_times(), log.data().T
 
 
+# A run whose joint speed exceeds this is diverging (the arm's motors reach a few rad/s).
+DIVERGED_JOINT_SPEED = 1e3  # rad/s
+
+
+class SimulationDivergedError(RuntimeError):
+    """The simulation blew up; `result` holds what was logged until then (failed=True)."""
+
+    def __init__(self, message: str, result: SimulationResult) -> None:
+        super().__init__(message)
+        self.result = result
+
+
+def _divergence_monitor(loop: ClosedLoop, found: list):
+    """A Simulator monitor that stops at the first non-finite or runaway plant state."""
+    plant = loop.plant
+    num_positions = plant.num_positions()
+
+    def monitor(root_context):
+        state = plant.GetPositionsAndVelocities(plant.GetMyContextFromRoot(root_context))
+        if not np.all(np.isfinite(state)):
+            found.append(f"the plant state is not finite at t = {root_context.get_time():.6g} s")
+        elif np.max(np.abs(state[num_positions:])) > DIVERGED_JOINT_SPEED:
+            found.append(
+                f"a joint speed exceeds {DIVERGED_JOINT_SPEED:g} rad/s at "
+                f"t = {root_context.get_time():.6g} s"
+            )
+        else:
+            return EventStatus.Succeeded()
+        return EventStatus.ReachedTermination(None, found[-1])
+
+    return monitor
+
+
 def run_scenario(scenario: Scenario, *, loop: ClosedLoop | None = None) -> SimulationResult:
-    """Builds (unless given), initializes and simulates `scenario`; returns its time series."""
+    """Builds (unless given), initializes and simulates `scenario`; returns its time series.
+
+    Raises:
+        SimulationDivergedError: the run blew up; the exception carries the partial result.
+    """
     loop = loop or BuildClosedLoop(scenario)
     simulator = Simulator(loop.diagram)
     ApplySimulatorConfig(scenario.simulator, simulator)
     context = simulator.get_mutable_context()
     SetInitialConditions(loop, context)
+    divergence: list[str] = []
+    simulator.set_monitor(_divergence_monitor(loop, divergence))
     simulator.Initialize()
     start = time.perf_counter()
-    simulator.AdvanceTo(scenario.duration)
+    try:
+        simulator.AdvanceTo(scenario.duration)
+    except RuntimeError as error:  # e.g. the integrator cannot reach the accuracy
+        divergence.append(
+            f"the integrator failed at t = {context.get_time():.6g} s: {str(error).splitlines()[0]}"
+        )
     wall_time = time.perf_counter() - start
+    result = _collect(loop, simulator, wall_time)
+    if divergence:
+        result.metrics["failed"] = True
+        result.metrics["failure"] = divergence[-1]
+        raise SimulationDivergedError(f"simulation diverged: {divergence[-1]}", result)
+    result.metrics["failed"] = False
+    return result
 
+
+def _collect(loop: ClosedLoop, simulator: Simulator, wall_time: float) -> SimulationResult:
+    """The logged time series as plain arrays, with their metrics."""
+    scenario = loop.scenario
+    context = simulator.get_context()
     sample_times, states = _log_data(loop, context, "state")
     _, contact_force = _log_data(loop, context, "contact_force")
     _, measured = _log_data(loop, context, "measured_force")
@@ -232,10 +289,11 @@ def run_scenario(scenario: Scenario, *, loop: ClosedLoop | None = None) -> Simul
 
     # Fingertip pose from the logged plant state, once, at the end.
     kinematics = PlanarFrameKinematics(loop.plant, scenario.arm.fingertip_frame)
-    pose = np.empty((sample_times.size, 3))
+    pose = np.full((sample_times.size, 3), np.nan)
     for row, state in enumerate(states):
-        kinematics.set_state(state)
-        pose[row] = kinematics.pose()
+        if np.all(np.isfinite(state)):
+            kinematics.set_state(state)
+            pose[row] = kinematics.pose()
     integrator = simulator.get_integrator()
     result = SimulationResult(
         scenario=scenario,

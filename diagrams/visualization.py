@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import shutil
@@ -104,6 +105,20 @@ def _write_atomically(path: Path, data: bytes) -> None:
         staging.unlink(missing_ok=True)
 
 
+def _quiet_meshcat() -> Meshcat:
+    """A Meshcat on localhost, without its "listening for connections" message.
+
+    The server lives only while the replay is recorded: pointing a user at it would mislead.
+    """
+    drake_logger = logging.getLogger("drake")
+    level = drake_logger.level
+    drake_logger.setLevel(logging.WARNING)
+    try:
+        return Meshcat(MeshcatParams(host="localhost"))
+    finally:
+        drake_logger.setLevel(level)
+
+
 def _frame_times(time: np.ndarray) -> np.ndarray:
     """Replay times k / fps over the logged span, for consecutive integers k."""
     first = math.ceil(float(time[0]) * REPLAY_FRAMES_PER_SECOND - 1e-9)
@@ -174,7 +189,7 @@ def write_meshcat_replay(result: SimulationResult, path: str | os.PathLike) -> P
 
     builder = DiagramBuilder()
     plant, scene_graph = AddPlanarArm(builder, scenario)
-    meshcat = Meshcat(MeshcatParams(host="localhost"))
+    meshcat = _quiet_meshcat()
     visualizer = MeshcatVisualizer.AddToBuilder(
         builder,
         scene_graph,

@@ -222,6 +222,8 @@ def CartesianPid_(T):
             )
 
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
+            if self._period > 0:  # the sampled controller has no continuous state
+                return
             error, _, _ = self._error_and_jacobian(context)
             derivatives.get_mutable_vector().SetFromVector(error)
 

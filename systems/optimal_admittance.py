@@ -202,6 +202,8 @@ def OptimalAdmittance_(T):
         # DiagramBuilder.Build probes the calcs with NaN values; np.errstate keeps numpy
         # from warning about it.
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
+            if self._period > 0:  # the sampled law has no continuous state
+                return
             with np.errstate(invalid="ignore"):
                 derivatives.get_mutable_vector().SetFromVector(self._force_error(context))
 
