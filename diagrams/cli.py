@@ -1,8 +1,12 @@
 """The `admittance` command line (design.md, "Command line").
 
-    admittance simulate [SCENARIO] [--set KEY=VALUE ...] [--out DIR]
+    admittance simulate  [SCENARIO] [--set KEY=VALUE ...] [--out DIR] [--force]
+    admittance stability [SCENARIO] [--set KEY=VALUE ...] [--out DIR] [--force] [--quick]
+    admittance diagram   [SCENARIO] [--set KEY=VALUE ...] --out FILE
+    admittance bench     [SCENARIO] [--set KEY=VALUE ...] [--repeat N] [--json FILE]
 
-Errors in the input print one line naming the key and exit with status 2.
+Errors in the input print one line naming the key and exit with status 2; a run that fails
+(a diverging simulation) prints one line and exits with status 1.
 """
 
 from __future__ import annotations
@@ -11,6 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from diagrams.output import OutputExistsError, check_output_dir
 from diagrams.scenario import ScenarioError, builtin_scenario_names, load_scenario
 
 DEFAULT_SCENARIO = "paper_stiffness_step"
@@ -49,14 +54,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     scenario = load_scenario(args.scenario, args.overrides)
     out = Path(args.out) if args.out else Path("results") / scenario.name
+    check_output_dir(out, overwrite=args.force)
     try:
         result = run_scenario(scenario)
     except SimulationDivergedError as diverged:
         # Keep what was logged, marked failed (metrics.json: "failed": true).
-        write_results(diverged.result, out)
+        write_results(diverged.result, out, overwrite=args.force)
         print(f"admittance: error: {diverged} (partial, failed result in {out}/)", file=sys.stderr)
         return EXIT_RUN_FAILED
-    write_results(result, out)
+    write_results(result, out, overwrite=args.force)
     print(summary(result))
     print(f"wrote {out}/: timeseries.csv, metrics.json, scenario.yaml, fig5-7 PNG")
     if args.meshcat_html:
@@ -71,8 +77,31 @@ def _cmd_diagram(args: argparse.Namespace) -> int:
     from diagrams.visualization import write_diagram_picture
 
     scenario = load_scenario(args.scenario, args.overrides)
+    suffix = Path(args.out).suffix.lower()
+    if suffix not in (".svg", ".png", ".dot"):
+        raise ScenarioError(f"--out {args.out}: unsupported picture format; use .svg, .png or .dot")
     loop = BuildClosedLoop(scenario)
     print(f"wrote {write_diagram_picture(loop.diagram, args.out)}")
+    return 0
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    import json
+
+    from diagrams.bench import format_benchmark, run_benchmark
+
+    scenario = load_scenario(args.scenario, args.overrides)
+    if args.repeat < 1:
+        raise ScenarioError(f"--repeat {args.repeat}: must be an integer >= 1")
+    report = run_benchmark(scenario, repeat=args.repeat)
+    print(format_benchmark(report))
+    if args.json:
+        path = Path(args.json)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        staging = path.with_name(f".{path.name}.incomplete")
+        staging.write_text(json.dumps(report, indent=2) + "\n")
+        staging.replace(path)
+        print(f"wrote {path}")
     return 0
 
 
@@ -82,8 +111,9 @@ def _cmd_stability(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario, args.overrides)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_stability"
     axes = MapAxes.quick() if args.quick else MapAxes()
+    check_output_dir(out, overwrite=args.force)
     report = analyse(scenario, axes=axes, with_trajectory=not args.no_trajectory)
-    write_report(report, out)
+    write_report(report, out, overwrite=args.force)
     print(format_report(report.summary), end="")
     print(f"wrote {out}/: report.json, report.txt, eigenvalues, maps and V(t) as PNG")
     return 0
@@ -99,6 +129,7 @@ def build_parser() -> argparse.ArgumentParser:
     simulate = commands.add_parser("simulate", help="run one scenario headless, write results")
     _add_scenario_arguments(simulate)
     simulate.add_argument("--out", help="output folder (default: results/<scenario name>)")
+    simulate.add_argument("--force", action="store_true", help="replace an existing --out folder")
     simulate.add_argument(
         "--meshcat-html", metavar="FILE", help="also write a self-contained Meshcat replay"
     )
@@ -118,22 +149,41 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_scenario_arguments(stability)
     stability.add_argument("--out", help="output folder (default: results/<scenario>_stability)")
+    stability.add_argument("--force", action="store_true", help="replace an existing --out folder")
     stability.add_argument("--quick", action="store_true", help="coarse map grids")
     stability.add_argument(
         "--no-trajectory", action="store_true", help="skip V(t) along a simulated run"
     )
     stability.set_defaults(handler=_cmd_stability)
+
+    bench = commands.add_parser(
+        "bench",
+        help="time a scenario (median of --repeat runs after a warm-up) against the bare "
+        "plant's floor; where the time goes",
+    )
+    _add_scenario_arguments(bench)
+    bench.add_argument("--repeat", type=int, default=3, help="timed runs (default 3)")
+    bench.add_argument("--json", metavar="FILE", help="also write the report as JSON")
+    bench.set_defaults(handler=_cmd_bench)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
+    import matplotlib
+
+    matplotlib.use("Agg")  # headless: figures go to files
+    from diagrams.visualization import DiagramPictureError
+
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return args.handler(args)
-    except ScenarioError as error:
+    except (ScenarioError, OutputExistsError, DiagramPictureError) as error:
         print(f"admittance: error: {error}", file=sys.stderr)
         return EXIT_INPUT_ERROR
+    except KeyboardInterrupt:
+        print("admittance: interrupted; no result was written", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -31,6 +31,7 @@ from systems.desired_trajectory import DesiredTrajectory
 from systems.flexiforce import FlexiForceSensor
 from systems.optimal_admittance import OptimalAdmittance
 from systems.planar_kinematics import PlanarFrameKinematics
+from systems.sensor_fault import SensorFault
 
 __all__ = [
     "ClosedLoop",
@@ -84,6 +85,24 @@ def AddPlanarArm(builder: DiagramBuilder, scenario: Scenario):
     return plant, scene_graph
 
 
+def _stiffness_schedule(scenario: Scenario) -> list[tuple[float, float]]:
+    """Ke steps of the scenario, with each stiffness_jump fault as a step and a step back."""
+    steps = sorted((s.time, s.stiffness) for s in scenario.wall.stiffness_steps)
+
+    def scheduled(time: float) -> float:
+        value = scenario.wall.stiffness
+        for step_time, stiffness in steps:
+            if step_time <= time:
+                value = stiffness
+        return value
+
+    for fault in (f for f in scenario.faults if f.kind == "stiffness_jump"):
+        after = scheduled(fault.end)
+        steps = [step for step in steps if not fault.start <= step[0] < fault.end]
+        steps = sorted(steps + [(fault.start, fault.value), (fault.end, after)])
+    return steps
+
+
 def BuildClosedLoop(
     scenario: Scenario, *, analysis: bool = False, open_admittance_loop: bool = False
 ) -> ClosedLoop:
@@ -119,10 +138,13 @@ def BuildClosedLoop(
             frame_name=frame,
             position=wall_config.position,
             stiffness=wall_config.stiffness,
-            stiffness_steps=[(s.time, s.stiffness) for s in wall_config.stiffness_steps],
+            stiffness_steps=_stiffness_schedule(scenario),
             velocity=wall_config.velocity,
             motion_start=wall_config.motion_start,
             motion_end=wall_config.motion_end,
+            position_offsets=[
+                (f.start, f.end, f.value) for f in scenario.faults if f.kind == "wall_retract"
+            ],
         )
     )
     wall.set_name("compliant_wall")
@@ -135,6 +157,15 @@ def BuildClosedLoop(
     )
     sensor.set_name("flexiforce_sensor")
     builder.Connect(wall.contact_force_output, sensor.contact_force_input)
+    measured_force_output = sensor.measured_force_output
+    sensor_faults = [
+        (f.kind, f.start, f.end, f.value) for f in scenario.faults if f.kind.startswith("sensor_")
+    ]
+    if sensor_faults:
+        fault = builder.AddSystem(SensorFault(sensor_faults))
+        fault.set_name("sensor_fault")
+        builder.Connect(sensor.measured_force_output, fault.measured_force_input)
+        measured_force_output = fault.reported_force_output
     random_sources = []
     noisy = sensor_config.kind != "ideal" and sensor_config.noise_std > 0 and not analysis
     if noisy:
@@ -188,6 +219,8 @@ def BuildClosedLoop(
                 force_axes=[WALL_NORMAL_AXIS],
                 num_axes=3,
                 period=admittance_config.period,
+                max_push=admittance_config.max_push,
+                max_retract=admittance_config.max_retract,
             )
         )
         admittance.set_name("optimal_admittance")
@@ -199,7 +232,7 @@ def BuildClosedLoop(
             force_reference = builder.AddSystem(ConstantVectorSource([scenario.force_reference]))
             force_reference.set_name("force_reference")
             builder.Connect(force_reference.get_output_port(), admittance.desired_force_input)
-        builder.Connect(sensor.measured_force_output, admittance.measured_force_input)
+        builder.Connect(measured_force_output, admittance.measured_force_input)
         commanded = builder.AddSystem(Adder(2, 3))
         commanded.set_name("commanded_position")
         builder.Connect(trajectory.desired_position_output, commanded.get_input_port(0))
@@ -211,13 +244,14 @@ def BuildClosedLoop(
     loggers = {}
     if analysis:
         builder.ExportOutput(wall.contact_force_output, "contact_force")
-        builder.ExportOutput(sensor.measured_force_output, "measured_force")
+        builder.ExportOutput(measured_force_output, "measured_force")
     else:
         period = scenario.logging.period
         ports = {
             "state": plant.get_state_output_port(),
             "contact_force": wall.contact_force_output,
-            "measured_force": sensor.measured_force_output,
+            "measured_force": measured_force_output,
+            "actuation": pid.actuation_output,
             "desired_position": trajectory.desired_position_output,
         }
         if admittance is not None:

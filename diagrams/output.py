@@ -1,4 +1,12 @@
-"""Result folders that are either complete or absent: write into a staging folder, then move."""
+"""Result folders that are either complete or absent: write into a staging folder, then move.
+
+A run writes into a hidden staging folder next to the result, ``.<name>.incomplete.<pid>.*``,
+whose first file is ``INCOMPLETE`` (a plain-text failure mark). Only when every file is
+written is the mark removed and the folder renamed into place (``os.replace``, atomic on
+one file system). So a run killed at any moment leaves the previous complete result (or
+none) under ``<name>``, and at most a hidden staging folder that says it is incomplete; the
+next run into the same place removes staging folders whose process is gone.
+"""
 
 from __future__ import annotations
 
@@ -9,21 +17,71 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["atomic_output_dir"]
+__all__ = ["OutputExistsError", "atomic_output_dir", "check_output_dir"]
+
+INCOMPLETE_MARK = "INCOMPLETE"
+
+
+class OutputExistsError(FileExistsError):
+    """The result folder exists and overwriting was not asked for."""
+
+
+def check_output_dir(out_dir: str | Path, overwrite: bool) -> None:
+    """Raises OutputExistsError if `out_dir` holds something and `overwrite` is False.
+
+    Called before a run, so that a long simulation is not wasted on a refused write.
+    """
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not overwrite:
+        raise OutputExistsError(
+            f"--out {out_dir}: exists; pass --force to replace it, or choose another folder"
+        )
+    if out_dir.exists() and not out_dir.is_dir():
+        raise OutputExistsError(f"--out {out_dir}: exists and is not a folder")
+
+
+def _process_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # alive, owned by someone else
+        return True
+    return True
+
+
+def _remove_stale_staging(out_dir: Path) -> None:
+    """Removes staging folders of `out_dir` left by runs that were killed."""
+    prefix = f".{out_dir.name}.incomplete."
+    for candidate in out_dir.parent.glob(prefix + "*"):
+        pid_text = candidate.name[len(prefix) :].split(".", 1)[0]
+        if pid_text.isdigit() and not _process_alive(int(pid_text)):
+            shutil.rmtree(candidate, ignore_errors=True)
 
 
 @contextmanager
-def atomic_output_dir(out_dir: str | Path) -> Iterator[Path]:
+def atomic_output_dir(out_dir: str | Path, overwrite: bool = True) -> Iterator[Path]:
     """Yields a staging folder next to `out_dir`; on success it replaces `out_dir`.
 
     On any error (or interruption) the staging folder is removed and `out_dir` is left as
-    it was, so a reader never sees a half-written result.
+    it was, so a reader never sees a half-written result. With `overwrite` False an existing
+    `out_dir` raises OutputExistsError before anything is written.
     """
     out_dir = Path(out_dir)
+    check_output_dir(out_dir, overwrite)
     out_dir.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
+    _remove_stale_staging(out_dir)
+    staging = Path(
+        tempfile.mkdtemp(prefix=f".{out_dir.name}.incomplete.{os.getpid()}.", dir=out_dir.parent)
+    )
+    mark = staging / INCOMPLETE_MARK
+    mark.write_text(
+        f"This folder is being written by process {os.getpid()} and is not a result.\n"
+        f"If that process is gone, it was interrupted: this folder can be deleted.\n"
+    )
     try:
         yield staging
+        mark.unlink()
         if out_dir.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old.", dir=out_dir.parent))
             os.replace(out_dir, old / out_dir.name)

@@ -10,15 +10,12 @@ import json
 import math
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from diagrams.output import atomic_output_dir  # noqa: E402
-from diagrams.scenario import scenario_to_yaml  # noqa: E402
-from diagrams.simulation import SimulationResult  # noqa: E402
+from diagrams.output import atomic_output_dir
+from diagrams.scenario import scenario_to_yaml
+from diagrams.simulation import SimulationResult
 
 __all__ = ["write_results", "plot_errors", "plot_reference", "plot_force", "summary"]
 
@@ -112,9 +109,9 @@ def write_csv(result: SimulationResult, path: Path) -> None:
     np.savetxt(path, data, delimiter=",", header=",".join(columns), comments="", fmt="%.9g")
 
 
-def write_results(result: SimulationResult, out_dir: str | Path) -> Path:
+def write_results(result: SimulationResult, out_dir: str | Path, overwrite: bool = True) -> Path:
     """Writes a complete result folder atomically; returns its path."""
-    with atomic_output_dir(out_dir) as staging:
+    with atomic_output_dir(out_dir, overwrite=overwrite) as staging:
         write_csv(result, staging / "timeseries.csv")
         (staging / "metrics.json").write_text(
             json.dumps(_json_safe(result.metrics), indent=2) + "\n"

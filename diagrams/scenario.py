@@ -24,6 +24,8 @@ from pydrake.systems.analysis import SimulatorConfig
 __all__ = [
     "AdmittanceConfig",
     "ArmConfig",
+    "FAULT_KINDS",
+    "FaultConfig",
     "LoggingConfig",
     "PidConfig",
     "Scenario",
@@ -91,6 +93,29 @@ class TrajectoryConfig:
     frequency: float = 0.1
 
 
+FAULT_KINDS = (
+    "sensor_nan",
+    "sensor_stuck",
+    "sensor_zero",
+    "sensor_saturated",
+    "wall_retract",
+    "stiffness_jump",
+)
+
+
+@dataclass
+class FaultConfig:
+    # One of FAULT_KINDS: the sensor reads NaN / a stuck value / 0 N / a full-scale value;
+    # the wall jumps back along +x by `value` m and returns; Ke becomes `value` N/m.
+    kind: str = "sensor_nan"
+    # When the fault starts and ends, s.
+    start: float = 1.0
+    end: float = 1.5
+    # sensor_stuck and sensor_saturated: the reading (N); wall_retract: the jump (m);
+    # stiffness_jump: Ke during the fault (N/m). Unused by sensor_nan and sensor_zero.
+    value: float = 0.0
+
+
 @dataclass
 class AdmittanceConfig:
     # false = the PID alone on Xd (the unsafe baseline).
@@ -101,6 +126,11 @@ class AdmittanceConfig:
     alpha: float = 0.1
     # Sampling period of a digital admittance block, s (0 = continuous, the paper's law).
     period: float = 0.0
+    # Largest reference offset into the wall (+x), m: a safety bound with anti-windup.
+    max_push: float = 0.01
+    # Largest reference offset away from the wall (-x), m: bounds the integral's windup
+    # when the sensor reads too high (e.g. saturated), so contact is regained quickly.
+    max_retract: float = 0.1
 
 
 @dataclass
@@ -162,6 +192,8 @@ class Scenario:
     arm: ArmConfig = field(default_factory=ArmConfig)
     simulator: SimulatorConfig = field(default_factory=_default_simulator_config)
     logging: LoggingConfig = field(default_factory=LoggingConfig)
+    # Injected faults (reliability studies); none by default.
+    faults: list[FaultConfig] = field(default_factory=list)
     # Name of the scenario (informational).
     name: str = "custom"
 
@@ -221,6 +253,7 @@ def _describe(kind) -> str:
         bool: "true or false",
         str: "a string",
         StiffnessStep: "{time: s, stiffness: N/m} mappings",
+        FaultConfig: "{kind, start, end, value} mappings",
     }.get(kind, getattr(kind, "__name__", str(kind)))
 
 
@@ -401,6 +434,25 @@ def validate(scenario: Scenario) -> Scenario:
     _require(
         finite(a.period) and a.period >= 0, "admittance.period", ">= 0 s (0 = continuous)", a.period
     )
+    _require(finite(a.max_push) and a.max_push > 0, "admittance.max_push", "> 0 m", a.max_push)
+    _require(
+        finite(a.max_retract) and a.max_retract > 0,
+        "admittance.max_retract",
+        "> 0 m",
+        a.max_retract,
+    )
+    for i, fault in enumerate(s.faults):
+        key = f"faults[{i}]"
+        _require(
+            fault.kind in FAULT_KINDS, key + ".kind", "one of " + ", ".join(FAULT_KINDS), fault.kind
+        )
+        _require(finite(fault.start) and fault.start >= 0, key + ".start", ">= 0 s", fault.start)
+        _require(finite(fault.end) and fault.end > fault.start, key + ".end", "> start", fault.end)
+        _require(finite(fault.value), key + ".value", "finite", fault.value)
+        if fault.kind == "stiffness_jump":
+            _require(fault.value > 0, key + ".value", "> 0 N/m for stiffness_jump", fault.value)
+        if fault.kind == "sensor_saturated":
+            _require(fault.value > 0, key + ".value", "> 0 N (the full-scale reading)", fault.value)
     p = s.pid
     for name, allowed, minimum in (("kp", "> 0", 0.0), ("kd", ">= 0", None), ("ki", ">= 0", None)):
         gains = getattr(p, name)

@@ -44,6 +44,7 @@ class SimulationResult:
     wall_stiffness: np.ndarray  # (N,): Ke(t)
     joint_positions: np.ndarray  # (N, nq)
     joint_velocities: np.ndarray  # (N, nv)
+    actuation: np.ndarray  # (N, nu): the PID's joint torques
     wall_time: float
     integrator_steps: int
     derivative_evaluations: int
@@ -164,6 +165,9 @@ def compute_metrics(result: SimulationResult) -> dict:
         events.append(("wall_starts", scenario.wall.motion_start))
         if scenario.wall.motion_end < duration:
             events.append(("wall_stops", scenario.wall.motion_end))
+    for fault in scenario.faults:
+        events += [(f"{fault.kind}_starts", fault.start), (f"{fault.kind}_ends", fault.end)]
+    events = [event for event in events if event[1] < duration]
     events.sort(key=lambda e: e[1])
     sensor = scenario.sensor
     if sensor.kind != "ideal" and sensor.noise_std > 0:
@@ -194,8 +198,26 @@ def compute_metrics(result: SimulationResult) -> dict:
                 ),
             }
         )
+    for fault in scenario.faults:
+        settled &= ~_window(time, fault.start, fault.end)
     if settled.sum() > 1:
         metrics["mean_abs_force_error_settled"] = _time_mean(time[settled], error[settled])
+    metrics["finite_actuation"] = bool(np.all(np.isfinite(result.actuation)))
+    metrics["faults"] = []
+    for fault in scenario.faults:
+        during = _window(time, fault.start, min(fault.end, duration))
+        recovery_end = min([e[1] for e in events if e[1] > fault.end] + [duration])
+        metrics["faults"].append(
+            {
+                "kind": fault.kind,
+                "start": fault.start,
+                "end": fault.end,
+                "worst_force_during": float(np.max(force[during])) if during.any() else None,
+                "recovery_time": _settling_time(
+                    time, averaged_force, reference, fault.end, recovery_end
+                ),
+            }
+        )
     if scenario.wall.velocity != 0.0:
         moving = _window(time, scenario.wall.motion_start, min(scenario.wall.motion_end, duration))
         if moving.any():
@@ -282,6 +304,7 @@ def _collect(loop: ClosedLoop, simulator: Simulator, wall_time: float) -> Simula
     _, contact_force = _log_data(loop, context, "contact_force")
     _, measured = _log_data(loop, context, "measured_force")
     _, desired = _log_data(loop, context, "desired_position")
+    _, actuation = _log_data(loop, context, "actuation")
     if "reference_offset" in loop.loggers:
         _, offset = _log_data(loop, context, "reference_offset")
     else:
@@ -307,6 +330,7 @@ def _collect(loop: ClosedLoop, simulator: Simulator, wall_time: float) -> Simula
         wall_stiffness=np.array([loop.wall.stiffness_at(t) for t in sample_times]),
         joint_positions=states[:, : loop.plant.num_positions()],
         joint_velocities=states[:, loop.plant.num_positions() :],
+        actuation=actuation,
         wall_time=wall_time,
         integrator_steps=int(integrator.get_num_steps_taken()),
         derivative_evaluations=int(integrator.get_num_derivative_evaluations()),

@@ -7,17 +7,14 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium  # noqa: E402
-from diagrams.output import atomic_output_dir  # noqa: E402
-from diagrams.scenario import Scenario  # noqa: E402
-from diagrams.simulation import run_scenario  # noqa: E402
-from diagrams.stability import (  # noqa: E402
+from diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium
+from diagrams.output import atomic_output_dir
+from diagrams.scenario import Scenario
+from diagrams.simulation import run_scenario
+from diagrams.stability import (
     critical_gamma,
     linear_versus_nonlinear,
     lyapunov_along_trajectory,
@@ -221,9 +218,9 @@ def _plot_map(report: StabilityReport, name: str, path: Path) -> None:
     plt.close(figure)
 
 
-def write_report(report: StabilityReport, out_dir: str | Path) -> Path:
+def write_report(report: StabilityReport, out_dir: str | Path, overwrite: bool = True) -> Path:
     """Writes report.json, report.txt and the figures atomically into `out_dir`."""
-    with atomic_output_dir(out_dir) as staging:
+    with atomic_output_dir(out_dir, overwrite=overwrite) as staging:
         data = dict(report.summary)
         data["maps"] = {
             name: {

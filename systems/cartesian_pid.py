@@ -41,7 +41,9 @@ def CartesianPid_(T):
         differentiated (its derivative would carry the force noise). Torques are clipped to
         the actuators' effort limits read from the plant (the URDF), and mapped to the
         actuation vector through the plant's actuation matrix. There is no gravity
-        compensation, as in the paper: the integral term carries the arm's weight.
+        compensation, as in the paper: the integral term carries the arm's weight. The
+        integral is frozen while any actuator saturates (conditional-integration
+        anti-windup), so a blocked arm does not wind it up.
 
         With ``period > 0`` the controller is sampled: at each sample the torque is computed
         and held (zero-order hold) and the integral advances by period * ec.
@@ -209,9 +211,22 @@ def CartesianPid_(T):
             """(ec, dec/dt, J), cached per context."""
             return self._tracking_cache.Eval(context)
 
-        def _actuation(self, integral, error, error_rate, jacobian):
+        def _unclipped(self, integral, error, error_rate, jacobian):
             wrench = self._kp * error + self._kd * error_rate + self._ki * integral
-            torque = self._actuation_from_generalized @ (jacobian.T @ wrench)
+            return self._actuation_from_generalized @ (jacobian.T @ wrench)
+
+        def _saturated(self, torque) -> bool:
+            values = torque if T is float else np.array([t.value() for t in torque])
+            return bool(np.any(np.abs(values) > self._effort_limits))
+
+        def _integral_rate(self, integral, error, error_rate, jacobian):
+            """dz/dt = ec, frozen while any actuator saturates (anti-windup)."""
+            if self._saturated(self._unclipped(integral, error, error_rate, jacobian)):
+                return error * 0.0
+            return error
+
+        def _actuation(self, integral, error, error_rate, jacobian):
+            torque = self._unclipped(integral, error, error_rate, jacobian)
             if T is float:
                 return np.clip(torque, -self._effort_limits, self._effort_limits)
             return np.array(
@@ -224,8 +239,11 @@ def CartesianPid_(T):
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
             if self._period > 0:  # the sampled controller has no continuous state
                 return
-            error, _, _ = self._error_and_jacobian(context)
-            derivatives.get_mutable_vector().SetFromVector(error)
+            error, error_rate, jacobian = self._error_and_jacobian(context)
+            integral = context.get_continuous_state_vector().CopyToVector()
+            derivatives.get_mutable_vector().SetFromVector(
+                self._integral_rate(integral, error, error_rate, jacobian)
+            )
 
         def _CalcContinuousActuation(self, context, output) -> None:
             error, error_rate, jacobian = self._error_and_jacobian(context)
@@ -237,8 +255,9 @@ def CartesianPid_(T):
             integral = state[:3]
             error, error_rate, jacobian = self._error_and_jacobian(context)
             torque = self._actuation(integral, error, error_rate, jacobian)
+            rate = self._integral_rate(integral, error, error_rate, jacobian)
             discrete_state.get_mutable_vector(self._state_index).SetFromVector(
-                np.concatenate([integral + self._period * error, torque])
+                np.concatenate([integral + self._period * rate, torque])
             )
 
         def _CalcSampledActuation(self, context, output) -> None:

@@ -31,6 +31,7 @@ def CompliantWall_(T):
 
             Ke(t) = stiffness_i for the last step time t_i <= t (initial value before any)
             Xe(t) = position + velocity * clamp(t - motion_start, 0, motion_end - motion_start)
+                    + sum of the offsets whose interval holds t
 
         There is no damping and no friction: the wall is the pure spring of eq. 4, and Ke is
         the equivalent stiffness of the wall, the silicone fingertip and the sensor together.
@@ -56,6 +57,7 @@ def CompliantWall_(T):
             velocity: float = 0.0,
             motion_start: float = 0.0,
             motion_end: float = math.inf,
+            position_offsets: Sequence[tuple[float, float, float]] = (),
             converter=None,
         ) -> None:
             """
@@ -67,6 +69,8 @@ def CompliantWall_(T):
                 stiffness_steps: (time s, Ke N/m) pairs, times increasing, Ke > 0.
                 velocity: wall speed along +x while it moves, m/s (0 = static).
                 motion_start, motion_end: when the wall moves, s (end >= start).
+                position_offsets: (start s, end s, offset m) jumps of Xe along +x during
+                    [start, end), e.g. a wall that retracts faster than any arm follows.
             """
             LeafSystem_[T].__init__(self, converter=converter)
             if not plant.HasFrameNamed(frame_name):
@@ -87,6 +91,10 @@ def CompliantWall_(T):
                 raise ValueError(
                     f"motion_end ({motion_end}) must be >= motion_start ({motion_start})"
                 )
+            offsets = [(float(a), float(b), float(d)) for a, b, d in position_offsets]
+            if any(not (math.isfinite(a) and b > a and math.isfinite(d)) for a, b, d in offsets):
+                raise ValueError(f"position_offsets need start < end and finite offsets: {offsets}")
+            self._offsets = offsets
             self._plant = plant
             self._frame_name = frame_name
             self._position = float(position)
@@ -127,6 +135,7 @@ def CompliantWall_(T):
                 velocity=other._velocity,
                 motion_start=other._motion_start,
                 motion_end=other._motion_end,
+                position_offsets=other._offsets,
                 converter=converter,
             )
 
@@ -142,11 +151,13 @@ def CompliantWall_(T):
         def position_at(self, time: float) -> float:
             """Xe(t), m."""
             moving = min(max(time - self._motion_start, 0.0), self._motion_end - self._motion_start)
-            return self._position + self._velocity * moving
+            offset = sum(d for start, end, d in self._offsets if start <= time < end)
+            return self._position + self._velocity * moving + offset
 
         def discontinuity_times(self) -> list[float]:
             """Times at which Ke jumps or the wall starts or stops (for the integrator)."""
             times = [t for t, _ in self._steps]
+            times += [t for start, end, _ in self._offsets for t in (start, end)]
             if self._velocity != 0.0:
                 times += [self._motion_start]
                 if math.isfinite(self._motion_end):

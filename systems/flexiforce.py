@@ -23,8 +23,12 @@ Default constants (all are constructor arguments):
   Then the gain is 0.045 V/N, the unloaded output 3.75 mV, 100 N reads 4.504 V and the
   output saturates at 5 V, i.e. at 111.03 N (the sensor's rated range).
 * ``rail_voltage`` = 5.0 V, the op-amp's positive output limit (dual +-5 V supply).
-* ``filter_cutoff_hz`` = 50 Hz first-order RC low-pass, tau = 1 / (2 pi 50 Hz) = 3.18 ms.
-  The sensor's own response time (< 5 us, datasheet) is negligible next to it.
+* ``filter_cutoff_hz`` = 5 kHz first-order RC low-pass, tau = 1 / (2 pi 5 kHz) = 31.8 us.
+  The paper leaves the cut-off open; its phase lag enters the force loop, and with the
+  paper's gains the loop needs a cut-off above about 1.05 kHz (Ke = 5e4 N/m) or 2.1 kHz
+  (Ke = 1e5 N/m) to stay stable (`admittance stability`), so 5 kHz is the default, the same
+  as the scenarios' ``sensor.filter_cutoff``. The sensor's own response time (< 5 us,
+  datasheet) is still negligible next to it.
 """
 
 from __future__ import annotations
@@ -134,7 +138,7 @@ def FlexiForceSensor_(T):
             drive_voltage: float = -0.5,
             feedback_resistance: float = 150.0e3,
             rail_voltage: float = 5.0,
-            filter_cutoff_hz: float = 50.0,
+            filter_cutoff_hz: float = 5000.0,
             linearity_error: float = 0.0,
             full_scale_force: float = 100.0,
             converter=None,

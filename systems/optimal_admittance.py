@@ -18,11 +18,11 @@ Gamma K alpha and integral gain Gamma K. The block never differentiates the meas
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
 from pydrake.autodiffutils import AutoDiffXd
-from pydrake.symbolic import Expression
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
@@ -43,7 +43,7 @@ def _positive_vector(
     return array
 
 
-@TemplateSystem.define("OptimalAdmittance_", T_list=[float, AutoDiffXd, Expression])
+@TemplateSystem.define("OptimalAdmittance_", T_list=[float, AutoDiffXd])
 def OptimalAdmittance_(T):
     class Impl(LeafSystem_[T]):
         """Optimal admittance (paper eq. 10 with the corrected sign), one integrator per axis.
@@ -58,6 +58,11 @@ def OptimalAdmittance_(T):
         stiffness of the position-controlled arm, i.e. the PID's Kp on that axis. E0 is the
         force error at t = 0 (a numeric parameter, see ``set_initial_force_error``) so that
         Xr(0) = 0.
+
+        Safety (issue 7): a reading that is not finite (a broken sensor) freezes the integral
+        and takes E = 0, holding Xr at its settled value; Xr stays within
+        [-max_retract, max_push] and the integral stops while it would drive Xr past a
+        bound (anti-windup), so the block recovers at once when the error changes sign.
 
         With ``period > 0`` the law is sampled as a digital controller would run it: at each
         sample k, Xr[k] = Gamma K (z[k] + alpha (E[k] - E0)) is latched (zero-order hold) and
@@ -82,6 +87,8 @@ def OptimalAdmittance_(T):
             force_axes: Sequence[int] = (0,),
             num_axes: int = 3,
             period: float = 0.0,
+            max_push: float | Sequence[float] = math.inf,
+            max_retract: float | Sequence[float] = math.inf,
             converter=None,
         ) -> None:
             """
@@ -92,6 +99,8 @@ def OptimalAdmittance_(T):
                 force_axes: indices of the force-controlled axes in X (x=0, y=1, theta=2).
                 num_axes: size of the reference offset output (3 for a planar arm).
                 period: 0 for the continuous law, otherwise the sampling period in s.
+                max_push: the largest Xr along +axis (into the wall), m (> 0; inf = none).
+                max_retract: the largest Xr along -axis (away from the wall), m (> 0).
             """
             LeafSystem_[T].__init__(self, converter=converter)
             axes = [int(a) for a in force_axes]
@@ -110,6 +119,13 @@ def OptimalAdmittance_(T):
             self._gamma = _positive_vector("gamma", gamma, size, allow_zero=False)
             self._alpha = _positive_vector("alpha", alpha, size, allow_zero=True)
             self._stiffness = _positive_vector("stiffness", stiffness, size, allow_zero=False)
+            self._max_push = np.broadcast_to(np.asarray(max_push, dtype=float), (size,)).copy()
+            self._max_retract = np.broadcast_to(
+                np.asarray(max_retract, dtype=float), (size,)
+            ).copy()
+            for name, bound in (("max_push", self._max_push), ("max_retract", self._max_retract)):
+                if np.any(np.isnan(bound)) or np.any(bound <= 0):
+                    raise ValueError(f"{name} must be > 0 m, got {bound.tolist()}")
             # The gains of the equivalent PI law on the force error.
             self._integral_gain = self._gamma * self._stiffness
             self._proportional_gain = self._integral_gain * self._alpha
@@ -146,6 +162,8 @@ def OptimalAdmittance_(T):
                 force_axes=other._axes,
                 num_axes=other._num_axes,
                 period=other._period,
+                max_push=other._max_push,
+                max_retract=other._max_retract,
                 converter=converter,
             )
 
@@ -186,12 +204,40 @@ def OptimalAdmittance_(T):
                 state.SetFromVector(value)
 
         # --- the law ----------------------------------------------------------------------
-        def _force_error(self, context):
-            return self.desired_force_input.Eval(context) - self.measured_force_input.Eval(context)
-
-        def _offset(self, context, integral, error):
+        def _law(self, context, integral):
+            """(Xr, dz/dt) per force axis, with the invalid-measurement and push bounds."""
+            desired = self.desired_force_input.Eval(context)
+            measured = self.measured_force_input.Eval(context)
             initial_error = context.get_numeric_parameter(self._initial_error_index).CopyToVector()
-            return self._integral_gain * (integral + self._alpha * (error - initial_error))
+            offsets, rates = [], []
+            for i in range(len(self._axes)):
+                force = measured[i]
+                if math.isfinite(force if T is float else force.value()):
+                    error = desired[i] - force
+                else:
+                    # No valid measurement: freeze the integral and take E = 0, i.e. hold
+                    # Xr at its settled value (where E = 0) until the sensor recovers.
+                    error = T(0.0)
+                offset = self._integral_gain[i] * (
+                    integral[i] + self._alpha[i] * (error - initial_error[i])
+                )
+                rate = error
+                offset_value = offset if T is float else offset.value()
+                error_value = error if T is float else error.value()
+                # Xr stays within [-max_retract, max_push]; while it is held at a bound the
+                # integral stops moving outward (anti-windup), so it leaves the bound as soon
+                # as the force error changes sign.
+                if offset_value > self._max_push[i]:
+                    offset = T(self._max_push[i])
+                    if error_value > 0:
+                        rate = T(0.0)
+                elif offset_value < -self._max_retract[i]:
+                    offset = T(-self._max_retract[i])
+                    if error_value < 0:
+                        rate = T(0.0)
+                offsets.append(offset)
+                rates.append(rate)
+            return offsets, rates
 
         def _scatter(self, values):
             full = [T(0.0)] * self._num_axes
@@ -199,28 +245,25 @@ def OptimalAdmittance_(T):
                 full[axis] = value
             return np.array(full)
 
-        # DiagramBuilder.Build probes the calcs with NaN values; np.errstate keeps numpy
-        # from warning about it.
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
             if self._period > 0:  # the sampled law has no continuous state
                 return
-            with np.errstate(invalid="ignore"):
-                derivatives.get_mutable_vector().SetFromVector(self._force_error(context))
+            integral = context.get_continuous_state_vector().CopyToVector()
+            _, rates = self._law(context, integral)
+            derivatives.get_mutable_vector().SetFromVector(rates)
 
         def _CalcContinuousOutput(self, context, output) -> None:
             integral = context.get_continuous_state_vector().CopyToVector()
-            with np.errstate(invalid="ignore"):
-                offset = self._offset(context, integral, self._force_error(context))
-            output.SetFromVector(self._scatter(offset))
+            offsets, _ = self._law(context, integral)
+            output.SetFromVector(self._scatter(offsets))
 
         def _DiscreteUpdate(self, context, discrete_state) -> None:
             size = len(self._axes)
             state = context.get_discrete_state(self._state_index).CopyToVector()
             integral = state[:size]
-            error = self._force_error(context)
-            offset = self._offset(context, integral, error)
+            offsets, rates = self._law(context, integral)
             discrete_state.get_mutable_vector(self._state_index).SetFromVector(
-                np.concatenate([integral + self._period * error, offset])
+                np.concatenate([integral + self._period * np.array(rates), offsets])
             )
 
         def _CalcSampledOutput(self, context, output) -> None:

@@ -78,14 +78,26 @@ def test_torque_is_clipped_to_the_urdf_effort_limits(arm_plant):
     assert np.any(np.abs(unclipped) > limits)
 
 
+def test_integral_freezes_while_saturated(arm_plant):
+    """Anti-windup: no integration while an actuator is at its effort limit."""
+    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI)
+    q = np.array([-0.45, 1.66, 0.36])
+    X, _ = eq18(q)
+    small = _pid_context(pid, q, np.zeros(3), X + [1e-4, 0, 0], np.zeros(3), np.zeros(3))
+    np.testing.assert_allclose(pid.EvalTimeDerivatives(small).CopyToVector(), [1e-4, 0, 0])
+    blocked = _pid_context(pid, q, np.zeros(3), X + [0.5, 0, 0], np.zeros(3), np.zeros(3))
+    assert np.any(np.abs(pid.actuation_output.Eval(blocked)) == pid.effort_limits)
+    np.testing.assert_allclose(pid.EvalTimeDerivatives(blocked).CopyToVector(), 0.0)
+
+
 def test_angle_error_is_wrapped(arm_plant):
     pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI)
     q = np.array([-0.45, 1.66, 0.36])
     X, _ = eq18(q)
-    commanded = X + [0.0, 0.0, 2 * math.pi + 0.01]  # the same angle plus 0.01 rad
+    commanded = X + [0.0, 0.0, 2 * math.pi + 0.001]  # the same angle plus 1 mrad
     context = _pid_context(pid, q, np.zeros(3), commanded, np.zeros(3), np.zeros(3))
     np.testing.assert_allclose(
-        pid.EvalTimeDerivatives(context).CopyToVector(), [0, 0, 0.01], atol=1e-12
+        pid.EvalTimeDerivatives(context).CopyToVector(), [0, 0, 0.001], atol=1e-12
     )
 
 

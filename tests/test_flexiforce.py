@@ -1,9 +1,9 @@
 """Tests of the FlexiForce A201 sensor system (systems/flexiforce.py).
 
 Expected values are computed by hand from the default constants:
-c = 6.0e-7 S/N, G0 = 5.0e-8 S, V_drive = -0.5 V, R_f = 150 kOhm, rail 5 V, f_c = 50 Hz, so
+c = 6.0e-7 S/N, G0 = 5.0e-8 S, V_drive = -0.5 V, R_f = 150 kOhm, rail 5 V, f_c = 5 kHz, so
 gain k = 0.5 * 150e3 * 6e-7 = 0.045 V/N, unloaded output V_offset = 0.5 * 150e3 * 5e-8 =
-3.75e-3 V, tau = 1 / (100 pi) s and saturation force (5 - 3.75e-3) / 0.045 N.
+3.75e-3 V, tau = 1 / (2 pi 5000) s and saturation force (5 - 3.75e-3) / 0.045 N.
 """
 
 import math
@@ -20,7 +20,8 @@ from systems.flexiforce import FlexiForceSensor
 
 GAIN = 0.045  # V/N
 V_OFFSET = 3.75e-3  # V
-TAU = 1.0 / (100.0 * math.pi)  # s
+POLE = 2.0 * math.pi * 5000.0  # 1/s, the filter's pole at the default cut-off
+TAU = 1.0 / POLE  # s
 F_SAT = (5.0 - 3.75e-3) / 0.045  # N, = 111.0277... N
 
 
@@ -112,12 +113,12 @@ def test_tension_reads_as_unloaded():
 def test_filter_derivative():
     sensor = FlexiForceSensor()
     context = _context(sensor, voltage=1.0, force=30.0, noise=0.4)
-    # V_s = 0.00375 + 0.045 * 30 = 1.35375 V; dV/dt = (1.35375 - 1.0) * 100 pi.
-    expected = 0.35375 * 100.0 * math.pi
+    # V_s = 0.00375 + 0.045 * 30 = 1.35375 V; dV/dt = (1.35375 - 1.0) * 2 pi 5000.
+    expected = 0.35375 * POLE
     assert _xdot(sensor, context) == pytest.approx(expected, rel=1e-12)
     # Saturated: the filter is driven towards the 5 V rail, not beyond.
     context = _context(sensor, voltage=4.0, force=300.0)
-    assert _xdot(sensor, context) == pytest.approx(1.0 * 100.0 * math.pi, rel=1e-12)
+    assert _xdot(sensor, context) == pytest.approx(1.0 * POLE, rel=1e-12)
 
 
 def test_step_response_reaches_63_percent_at_tau():
@@ -220,8 +221,8 @@ def test_autodiff_derivative_gain():
     sensor_ad.contact_force_input.FixValue(context, [AutoDiffXd(40.0, [1.0])])
     sensor_ad.noise_input.FixValue(context, [AutoDiffXd(0.0, [0.0])])
     xdot = _xdot(sensor_ad, context)
-    # d(dV/dt)/dF = k / tau = 0.045 * 100 pi V/(N s).
-    assert xdot.derivatives()[0] == pytest.approx(0.045 * 100.0 * math.pi, rel=1e-12)
+    # d(dV/dt)/dF = k / tau = 0.045 * 2 pi 5000 V/(N s).
+    assert xdot.derivatives()[0] == pytest.approx(0.045 * POLE, rel=1e-12)
     # Saturated and in tension the slope is zero (an empty gradient also means zero).
     for force in (200.0, -5.0):
         sensor_ad.contact_force_input.FixValue(context, [AutoDiffXd(force, [1.0])])
@@ -249,8 +250,8 @@ def test_symbolic_derivative():
     sensor_sym.contact_force_input.FixValue(context, [force])
     sensor_sym.noise_input.FixValue(context, [0.0])
     xdot = _xdot(sensor_sym, context)
-    assert xdot.Evaluate({force: 30.0}) == pytest.approx((0.045 * 30.0) * 100.0 * math.pi)
-    assert xdot.Evaluate({force: 1e3}) == pytest.approx((5.0 - 3.75e-3) * 100.0 * math.pi)
+    assert xdot.Evaluate({force: 30.0}) == pytest.approx((0.045 * 30.0) * POLE)
+    assert xdot.Evaluate({force: 1e3}) == pytest.approx((5.0 - 3.75e-3) * POLE)
 
 
 def test_linearize():
@@ -258,8 +259,8 @@ def test_linearize():
     context = _context(sensor, voltage=V_OFFSET + GAIN * 20.0, force=20.0)
     # Linearize (which converts to AutoDiffXd) uses the first input, contact_force.
     linear = Linearize(sensor, context)
-    np.testing.assert_allclose(linear.A(), [[-100.0 * math.pi]], rtol=1e-12)
-    np.testing.assert_allclose(linear.B(), [[0.045 * 100.0 * math.pi]], rtol=1e-12)
+    np.testing.assert_allclose(linear.A(), [[-POLE]], rtol=1e-12)
+    np.testing.assert_allclose(linear.B(), [[0.045 * POLE]], rtol=1e-12)
     np.testing.assert_allclose(linear.C(), [[1.0 / 0.045]], rtol=1e-12)
     np.testing.assert_allclose(linear.D(), [[0.0]], atol=1e-15)
 

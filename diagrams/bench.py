@@ -1,0 +1,589 @@
+"""Benchmark of one scenario: how long Simulator.AdvanceTo takes and where the time goes.
+
+``run_benchmark(scenario, repeat)`` measures, in one call:
+
+* the closed loop (BuildClosedLoop + SetInitialConditions): one warm-up run through the
+  project's ``run_scenario`` (it stops a diverging scenario before any timing, and gives the
+  force metrics and, under tracemalloc, the peak of Python allocations), then ``repeat``
+  timed runs of ``Simulator.AdvanceTo`` alone (building and result collection excluded):
+  median, min and max wall time, real-time factor, the integrator's statistics (steps,
+  derivative evaluations, Newton iterations, Jacobians, ...);
+* the Python callbacks, in one extra profiling run: every calc of the project's LeafSystems
+  (``Do*``, ``_Calc*``/``_calc*``, ``*Update*`` methods) is wrapped with a counter and a
+  timer, so the timed runs are not slowed. It gives the calls per derivative evaluation
+  and the time spent inside them (exclusive of nested callbacks, inclusive of the pydrake
+  calls they make);
+* the FLOOR: the bare MultibodyPlant of the same URDF (``AddPlanarArm``) held at the
+  closed loop's initial configuration by constant gravity torques, simulated for the same
+  duration with the same SimulatorConfig; and the ratio closed loop / floor;
+* the logging cost: one run with the loggers off (or, for a scenario that logs
+  periodically, logging every step), against the timed median;
+* memory: the process's peak resident set size (``ru_maxrss``) and the tracemalloc peak of
+  the warm-up run.
+
+``format_benchmark(report)`` renders the report as a readable table.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import importlib.metadata
+import os
+import platform
+import re
+import resource
+import statistics
+import sys
+import time
+import tracemalloc
+from collections.abc import Callable
+
+import numpy as np
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource
+
+from diagrams.closed_loop import AddPlanarArm, BuildClosedLoop, SetInitialConditions
+from diagrams.scenario import LoggingConfig, Scenario
+from diagrams.simulation import run_scenario
+
+__all__ = ["format_benchmark", "run_benchmark"]
+
+# Methods of the project's LeafSystems that Drake calls back: DoCalcTimeDerivatives and
+# other Do* overrides, output/cache calcs (_Calc*, _calc*) and discrete updates (*Update*).
+_CALLBACK_NAME = re.compile(r"^(Do[A-Z]\w*|_\w*[Cc]alc\w*|_\w*Update\w*)$")
+# How many callbacks the report lists (the most expensive first).
+_TOP_CALLBACKS = 12
+
+
+# --- timing helpers ---------------------------------------------------------------------
+
+
+def _spread(samples: list[float]) -> dict:
+    """Median, min, max and the samples of a list of wall times, s."""
+    return {
+        "median": statistics.median(samples),
+        "min": min(samples),
+        "max": max(samples),
+        "samples": list(samples),
+    }
+
+
+def _integrator_statistics(simulator: Simulator) -> dict:
+    """The integrator's statistics (IntegratorBase.GetStatisticsSummary), plain numbers."""
+    summary = {}
+    for name, value in simulator.get_integrator().GetStatisticsSummary():
+        key = name.removeprefix("integrator_")
+        summary[key] = int(value) if float(value).is_integer() else float(value)
+    return summary
+
+
+@dataclasses.dataclass
+class _Run:
+    """One simulated run: AdvanceTo's wall time and the integrator's statistics."""
+
+    wall_time: float
+    steps: int
+    derivative_evaluations: int
+    statistics: dict
+    final_positions: np.ndarray | None = None
+
+
+def _advance(
+    diagram: Diagram,
+    scenario: Scenario,
+    initialize: Callable[[Context], None],
+    plant=None,
+) -> _Run:
+    """Simulates `diagram` for scenario.duration with scenario.simulator; times AdvanceTo."""
+    simulator = Simulator(diagram)
+    ApplySimulatorConfig(scenario.simulator, simulator)
+    context = simulator.get_mutable_context()
+    initialize(context)
+    simulator.Initialize()
+    start = time.perf_counter()
+    simulator.AdvanceTo(scenario.duration)
+    wall_time = time.perf_counter() - start
+    integrator = simulator.get_integrator()
+    final_positions = None
+    if plant is not None:
+        final_positions = plant.GetPositions(plant.GetMyContextFromRoot(context)).copy()
+    return _Run(
+        wall_time=wall_time,
+        steps=int(integrator.get_num_steps_taken()),
+        derivative_evaluations=int(integrator.get_num_derivative_evaluations()),
+        statistics=_integrator_statistics(simulator),
+        final_positions=final_positions,
+    )
+
+
+def _advance_closed_loop(scenario: Scenario) -> _Run:
+    loop = BuildClosedLoop(scenario)
+    return _advance(loop.diagram, scenario, lambda context: SetInitialConditions(loop, context))
+
+
+# --- Python callbacks -------------------------------------------------------------------
+
+
+class _CallbackProfiler:
+    """Counts and times the calcs of the project's LeafSystems.
+
+    The classes of the Python systems in a diagram are patched (before the systems are
+    built, because Drake keeps the bound calc methods it is given at construction) with a
+    wrapper that costs two perf_counter calls (about 1.3 us per call, against about 2 us
+    for Drake to call a trivial Python calc at all). Time is exclusive of nested callbacks
+    (a calc that Evals a port computed by another Python calc) and inclusive of the pydrake
+    calls the calc makes itself; the C++-to-Python dispatch is not inside it.
+    """
+
+    def __init__(self) -> None:
+        self.entries: dict[tuple[int, str], list] = {}  # (id(system), method) -> [calls, s]
+        self.top_level_time = 0.0
+        self._children: list[float] = []
+        self._patched: list[tuple[type, str, object]] = []
+
+    def _wrap(self, method_name: str, function: Callable) -> Callable:
+        entries = self.entries
+        children = self._children
+        clock = time.perf_counter
+
+        @functools.wraps(function)
+        def wrapper(system, *args, **kwargs):
+            children.append(0.0)
+            start = clock()
+            try:
+                return function(system, *args, **kwargs)
+            finally:
+                elapsed = clock() - start
+                nested = children.pop()
+                key = (id(system), method_name)
+                entry = entries.get(key)
+                if entry is None:
+                    entry = entries[key] = [0, 0.0]
+                entry[0] += 1
+                entry[1] += elapsed - nested
+                if children:
+                    children[-1] += elapsed
+                else:
+                    self.top_level_time += elapsed
+
+        return wrapper
+
+    def patch(self, classes: set[type]) -> None:
+        """Wraps the callback methods defined by `classes` and their Python bases."""
+        owners = {
+            owner
+            for cls in classes
+            for owner in cls.__mro__
+            if not owner.__module__.startswith(("pydrake", "builtins"))
+        }
+        for owner in owners:
+            for name, attribute in list(vars(owner).items()):
+                if callable(attribute) and _CALLBACK_NAME.match(name):
+                    self._patched.append((owner, name, attribute))
+                    setattr(owner, name, self._wrap(name, attribute))
+
+    def restore(self) -> None:
+        for owner, name, attribute in reversed(self._patched):
+            setattr(owner, name, attribute)
+        self._patched.clear()
+
+
+def _python_system_classes(diagram: Diagram) -> set[type]:
+    return {
+        type(system)
+        for system in diagram.GetSystems()
+        if not type(system).__module__.startswith("pydrake")
+    }
+
+
+def _profile_callbacks(scenario: Scenario) -> tuple[_Run, _CallbackProfiler, dict[int, str]]:
+    """One closed-loop run with every Python calc counted and timed."""
+    classes = _python_system_classes(BuildClosedLoop(scenario).diagram)
+    profiler = _CallbackProfiler()
+    profiler.patch(classes)
+    try:
+        loop = BuildClosedLoop(scenario)
+        names = {id(system): system.get_name() for system in loop.diagram.GetSystems()}
+        run = _advance(loop.diagram, scenario, lambda context: SetInitialConditions(loop, context))
+    finally:
+        profiler.restore()
+    return run, profiler, names
+
+
+# --- the floor --------------------------------------------------------------------------
+
+
+def _initial_positions(scenario: Scenario) -> np.ndarray:
+    """The closed loop's initial joint positions (SetInitialConditions)."""
+    loop = BuildClosedLoop(scenario)
+    context = loop.diagram.CreateDefaultContext()
+    SetInitialConditions(loop, context)
+    return loop.plant.GetPositions(loop.plant.GetMyContextFromRoot(context)).copy()
+
+
+def _build_floor(scenario: Scenario, positions: np.ndarray):
+    """The bare arm held at `positions` by constant torques equal to gravity's."""
+    builder = DiagramBuilder()
+    plant, _ = AddPlanarArm(builder, scenario)
+    plant_context = plant.CreateDefaultContext()
+    plant.SetPositions(plant_context, positions)
+    gravity = plant.CalcGravityGeneralizedForces(plant_context)
+    # B u = -tau_g: the actuators cancel gravity, so the arm stays at rest.
+    actuation = np.linalg.lstsq(plant.MakeActuationMatrix(), -gravity, rcond=None)[0]
+    source = builder.AddSystem(ConstantVectorSource(actuation))
+    source.set_name("gravity_torques")
+    builder.Connect(source.get_output_port(), plant.get_actuation_input_port())
+    diagram = builder.Build()
+    diagram.set_name("floor")
+    return diagram, plant
+
+
+def _advance_floor(scenario: Scenario, positions: np.ndarray) -> _Run:
+    diagram, plant = _build_floor(scenario, positions)
+
+    def initialize(context: Context) -> None:
+        plant_context = plant.GetMyMutableContextFromRoot(context)
+        plant.SetPositions(plant_context, positions)
+        plant.SetVelocities(plant_context, np.zeros(plant.num_velocities()))
+
+    return _advance(diagram, scenario, initialize, plant)
+
+
+# --- memory and environment -------------------------------------------------------------
+
+
+def _peak_rss_mb() -> float:
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    # Linux reports KiB, macOS bytes.
+    return peak / (1024.0**2 if sys.platform == "darwin" else 1024.0)
+
+
+def _environment() -> dict:
+    try:
+        drake = importlib.metadata.version("drake")
+    except importlib.metadata.PackageNotFoundError:  # pragma: no cover (a source build)
+        drake = "unknown"
+    return {
+        "python": platform.python_version(),
+        "drake": drake,
+        "platform": platform.platform(),
+        "cpu_count": os.cpu_count(),
+    }
+
+
+# --- the benchmark ----------------------------------------------------------------------
+
+
+def _per(numerator: float, denominator: float) -> float | None:
+    return numerator / denominator if denominator else None
+
+
+def run_benchmark(scenario: Scenario, repeat: int = 3) -> dict:
+    """Times `scenario` and its floor, and reports where the time goes.
+
+    Args:
+        scenario: a validated scenario (``load_scenario``).
+        repeat: number of timed runs after the warm-up (>= 1).
+
+    Returns:
+        A JSON-serialisable dict (see ``format_benchmark`` for its reading): ``scenario``,
+        ``repeat``, ``closed_loop``, ``python``, ``floor``, ``ratio_to_floor``,
+        ``per_evaluation_ratio_to_floor``, ``logging``, ``memory``, ``environment``.
+        Times are in seconds unless a key says otherwise.
+
+    Raises:
+        ValueError: `repeat` < 1.
+        SimulationDivergedError: the warm-up run diverged (nothing is timed).
+    """
+    if repeat < 1:
+        raise ValueError(f"repeat must be >= 1, got {repeat}")
+    rss_before = _peak_rss_mb()
+
+    # Warm-up through the project's path, under tracemalloc (it is not timed).
+    tracing = tracemalloc.is_tracing()
+    if not tracing:
+        tracemalloc.start()
+    tracemalloc.reset_peak()
+    try:
+        warm_up = run_scenario(scenario)
+        _, python_peak = tracemalloc.get_traced_memory()
+    finally:
+        if not tracing:
+            tracemalloc.stop()
+
+    # Timed runs: AdvanceTo alone.
+    build_times = []
+    runs = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        loop = BuildClosedLoop(scenario)
+        build_times.append(time.perf_counter() - start)
+        runs.append(
+            _advance(
+                loop.diagram,
+                scenario,
+                lambda context, loop=loop: SetInitialConditions(loop, context),
+            )
+        )
+    wall = _spread([run.wall_time for run in runs])
+    median = wall["median"]
+    timed = runs[0]
+
+    # Python callbacks, in a separate run.
+    profiled, profiler, names = _profile_callbacks(scenario)
+    callbacks = []
+    for (system_id, method), (calls, seconds) in profiler.entries.items():
+        callbacks.append(
+            {
+                "name": f"{names.get(system_id, '?')}.{method}",
+                "calls": calls,
+                "per_derivative_evaluation": _per(calls, profiled.derivative_evaluations),
+                "time": seconds,
+                "mean_us": 1e6 * seconds / calls,
+            }
+        )
+    callbacks.sort(key=lambda entry: entry["time"], reverse=True)
+    total_calls = sum(entry["calls"] for entry in callbacks)
+    python_fraction = _per(profiler.top_level_time, profiled.wall_time)
+
+    # The floor: the bare plant, same duration and SimulatorConfig.
+    positions = _initial_positions(scenario)
+    _advance_floor(scenario, positions)  # warm-up
+    floor_runs = [_advance_floor(scenario, positions) for _ in range(repeat)]
+    floor_wall = _spread([run.wall_time for run in floor_runs])
+    floor = floor_runs[0]
+    floor_per_evaluation = _per(floor_wall["median"], floor.derivative_evaluations)
+    per_evaluation = _per(median, timed.derivative_evaluations)
+
+    # Logging cost: one run with the other logging setting.
+    if scenario.logging.period == 0.0:
+        # Loggers that publish once, at t = 0: the cost of the loop without logging.
+        variant, variant_period = "none", 2.0 * scenario.duration + 1.0
+    else:
+        variant, variant_period = "every step", 0.0
+    variant_run = _advance_closed_loop(
+        dataclasses.replace(scenario, logging=LoggingConfig(period=variant_period))
+    )
+    current = "every step" if scenario.logging.period == 0.0 else f"{scenario.logging.period:g} s"
+    logging = [
+        {"logging": current, "wall_time": median, "integrator_steps": timed.steps},
+        {
+            "logging": variant,
+            "wall_time": variant_run.wall_time,
+            "integrator_steps": variant_run.steps,
+            "relative_to_timed": _per(variant_run.wall_time, median),
+        },
+    ]
+
+    metrics = warm_up.metrics
+    simulator_config = scenario.simulator
+    return {
+        "scenario": {
+            "name": scenario.name,
+            "duration": scenario.duration,
+            "sensor": scenario.sensor.kind,
+            "integration_scheme": simulator_config.integration_scheme,
+            "accuracy": simulator_config.accuracy,
+            "max_step_size": simulator_config.max_step_size,
+            "use_error_control": simulator_config.use_error_control,
+            "logging_period": scenario.logging.period,
+        },
+        "repeat": repeat,
+        "closed_loop": {
+            "wall_time": wall,
+            "build_time": statistics.median(build_times),
+            "real_time_factor": _per(scenario.duration, median),
+            "integrator_steps": timed.steps,
+            "derivative_evaluations": timed.derivative_evaluations,
+            "derivative_evaluations_per_step": _per(timed.derivative_evaluations, timed.steps),
+            "wall_time_per_step_us": 1e6 * median / timed.steps,
+            "wall_time_per_derivative_evaluation_us": 1e6 * per_evaluation,
+            "deterministic": all(
+                (run.steps, run.derivative_evaluations)
+                == (timed.steps, timed.derivative_evaluations)
+                for run in [*runs, profiled]
+            ),
+            "integrator": timed.statistics,
+            "warm_up_wall_time": warm_up.wall_time,
+            "peak_force": metrics.get("peak_force"),
+            "contact_losses": metrics.get("contact_losses"),
+        },
+        "python": {
+            "callback_calls": total_calls,
+            "callbacks_per_derivative_evaluation": _per(
+                total_calls, profiled.derivative_evaluations
+            ),
+            "callbacks_per_step": _per(total_calls, profiled.steps),
+            "time_in_callbacks": profiler.top_level_time,
+            "fraction_of_wall_time": python_fraction,
+            "estimated_time_in_timed_runs": (
+                python_fraction * median if python_fraction is not None else None
+            ),
+            "profiled_wall_time": profiled.wall_time,
+            "callbacks": callbacks[:_TOP_CALLBACKS],
+        },
+        "floor": {
+            "wall_time": floor_wall,
+            "real_time_factor": _per(scenario.duration, floor_wall["median"]),
+            "integrator_steps": floor.steps,
+            "derivative_evaluations": floor.derivative_evaluations,
+            "wall_time_per_step_us": 1e6 * floor_wall["median"] / floor.steps,
+            "wall_time_per_derivative_evaluation_us": (
+                1e6 * floor_per_evaluation if floor_per_evaluation is not None else None
+            ),
+            "max_joint_drift": float(np.max(np.abs(floor.final_positions - positions))),
+        },
+        "ratio_to_floor": _per(median, floor_wall["median"]),
+        "per_evaluation_ratio_to_floor": (
+            _per(per_evaluation, floor_per_evaluation) if floor_per_evaluation else None
+        ),
+        "logging": logging,
+        "memory": {
+            "peak_rss_mb": _peak_rss_mb(),
+            "peak_rss_mb_before": rss_before,
+            "python_peak_mb": python_peak / 1024.0**2,
+        },
+        "environment": _environment(),
+    }
+
+
+# --- the table --------------------------------------------------------------------------
+
+
+def _seconds(value: float | None) -> str:
+    if value is None:
+        return "-"
+    if value >= 100:
+        return f"{value:.0f} s"
+    if value >= 1:
+        return f"{value:.2f} s"
+    if value >= 1e-3:
+        return f"{1e3 * value:.1f} ms"
+    if value >= 1e-6:
+        return f"{1e6 * value:.0f} us"
+    return f"{value:.2g} s"
+
+
+def _number(value: float | None, digits: int = 3) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, int):
+        return f"{value:,}"
+    return f"{value:.{digits}g}"
+
+
+def format_benchmark(report: dict) -> str:
+    """A readable table of a ``run_benchmark`` report."""
+    scenario = report["scenario"]
+    loop = report["closed_loop"]
+    floor = report["floor"]
+    python = report["python"]
+    integrator = loop["integrator"]
+    memory = report["memory"]
+    lines = [
+        f"Benchmark of {scenario['name']}: {scenario['duration']:g} s simulated, sensor "
+        f"{scenario['sensor']}, {scenario['integration_scheme']} accuracy "
+        f"{scenario['accuracy']:g}, max step {scenario['max_step_size']:g} s, "
+        f"{report['repeat']} timed run(s) after a warm-up",
+        "",
+        f"{'':34}{'closed loop':>22}{'floor (bare arm)':>22}",
+    ]
+
+    def row(label: str, closed: str, bare: str = "") -> None:
+        lines.append(f"{label:34}{closed:>22}{bare:>22}")
+
+    row(
+        "AdvanceTo wall time, median",
+        _seconds(loop["wall_time"]["median"]),
+        _seconds(floor["wall_time"]["median"]),
+    )
+    row(
+        "  min / max",
+        f"{_seconds(loop['wall_time']['min'])} / {_seconds(loop['wall_time']['max'])}",
+        f"{_seconds(floor['wall_time']['min'])} / {_seconds(floor['wall_time']['max'])}",
+    )
+    row(
+        "real-time factor",
+        _number(loop["real_time_factor"]),
+        _number(floor["real_time_factor"]),
+    )
+    row("integrator steps", _number(loop["integrator_steps"]), _number(floor["integrator_steps"]))
+    row(
+        "derivative evaluations",
+        _number(loop["derivative_evaluations"]),
+        _number(floor["derivative_evaluations"]),
+    )
+    row("  per step", _number(loop["derivative_evaluations_per_step"]))
+    row(
+        "wall time per step",
+        _seconds(1e-6 * loop["wall_time_per_step_us"]),
+        _seconds(1e-6 * floor["wall_time_per_step_us"]),
+    )
+    floor_per_evaluation = floor["wall_time_per_derivative_evaluation_us"]
+    row(
+        "wall time per derivative eval.",
+        _seconds(1e-6 * loop["wall_time_per_derivative_evaluation_us"]),
+        _seconds(1e-6 * floor_per_evaluation) if floor_per_evaluation is not None else "-",
+    )
+    row("build time (excluded)", _seconds(loop["build_time"]))
+    lines += [
+        "",
+        f"closed loop / floor: {_number(report['ratio_to_floor'])} x in wall time, "
+        f"{_number(report['per_evaluation_ratio_to_floor'])} x per derivative evaluation "
+        f"(floor drift {floor['max_joint_drift']:.1g} rad)",
+        f"integrator: {_number(integrator.get('num_newton_raphson_iterations'))} Newton "
+        f"iterations, {_number(integrator.get('num_jacobian_evaluations'))} Jacobians "
+        f"({_number(integrator.get('num_derivative_evaluations_for_jacobian'))} derivative "
+        f"evaluations), {_number(integrator.get('num_iteration_matrix_factorizations'))} "
+        f"factorizations, step shrinkages "
+        f"{_number(integrator.get('num_step_shrinkages_from_error_control'))} (error control) + "
+        f"{_number(integrator.get('num_step_shrinkages_from_substep_failures'))} "
+        f"(substep failures), smallest step "
+        f"{_seconds(integrator.get('smallest_adapted_step_size_taken'))}",
+    ]
+    if not loop["deterministic"]:
+        lines.append("warning: the runs did not take the same steps (non-deterministic loop)")
+    fraction = python["fraction_of_wall_time"]
+    lines += [
+        "",
+        f"Python callbacks (separate profiling run, {_seconds(python['profiled_wall_time'])}): "
+        f"{_number(python['callback_calls'])} calls, "
+        f"{_number(python['callbacks_per_derivative_evaluation'])} per derivative evaluation; "
+        f"{_seconds(python['time_in_callbacks'])} inside them"
+        + (f" = {100 * fraction:.0f} % of the run" if fraction is not None else ""),
+        f"  {'callback':46}{'calls':>10}{'per eval':>10}{'time':>10}{'mean':>10}",
+    ]
+    for entry in python["callbacks"]:
+        lines.append(
+            f"  {entry['name']:46}{entry['calls']:>10,}"
+            f"{_number(entry['per_derivative_evaluation']):>10}"
+            f"{_seconds(entry['time']):>10}{_seconds(1e-6 * entry['mean_us']):>10}"
+        )
+    timed = loop["wall_time"]
+    lines += [
+        "",
+        f"logging (one run each; the timed runs ranged {_seconds(timed['min'])} to "
+        f"{_seconds(timed['max'])}):",
+    ]
+    for entry in report["logging"]:
+        relative = entry.get("relative_to_timed")
+        lines.append(
+            f"  {entry['logging']:14}{_seconds(entry['wall_time']):>10}"
+            f"{_number(entry['integrator_steps']):>10} steps"
+            + (f"  ({100 * (relative - 1):+.1f} % vs timed median)" if relative else "")
+        )
+    lines += [
+        "",
+        f"memory: peak RSS {memory['peak_rss_mb']:.0f} MB (process), Python allocations "
+        f"peak {memory['python_peak_mb']:.1f} MB (tracemalloc, warm-up run)",
+        f"force check (warm-up): peak {_number(loop['peak_force'])} N, contact losses "
+        f"{_number(loop['contact_losses'])}",
+    ]
+    environment = report["environment"]
+    lines.append(
+        f"Python {environment['python']}, drake {environment['drake']}, "
+        f"{environment['cpu_count']} CPUs, {environment['platform']}"
+    )
+    return "\n".join(lines)
