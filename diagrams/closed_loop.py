@@ -340,6 +340,28 @@ def CheckTrajectoryReachable(loop: ClosedLoop, samples: int = 16) -> None:
             ) from None
 
 
+def _check_force_within_effort_limits(loop: ClosedLoop, plant_context, gravity) -> None:
+    """Rejects a force reference the arm's actuators cannot hold at the initial pose.
+
+    Static balance at rest: tau = J^T [Fr, 0, 0] - tau_gravity must stay within the URDF's
+    effort limits, or the PID saturates and Fr is never reached.
+    """
+    scenario = loop.scenario
+    kinematics = PlanarFrameKinematics(loop.plant, scenario.arm.fingertip_frame)
+    kinematics.set_state(loop.plant.GetPositionsAndVelocities(plant_context))
+    push = np.zeros(3)
+    push[WALL_NORMAL_AXIS] = scenario.force_reference
+    torque = kinematics.jacobian().T @ push - gravity
+    limits = loop.pid.effort_limits
+    if np.any(np.abs(torque) > limits):
+        needed = ", ".join(f"{abs(t):.3g}" for t in torque)
+        allowed = ", ".join(f"{limit:.3g}" for limit in limits)
+        raise ScenarioError(
+            f"force_reference: {scenario.force_reference:g} N needs joint torques ({needed}) N m "
+            f"at the initial pose, beyond the URDF's effort limits ({allowed}) N m"
+        )
+
+
 def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
     """The arm at rest at the scenario's initial pose, held against gravity by its PID.
 
@@ -374,6 +396,7 @@ def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
     plant.SetVelocities(plant_context, np.zeros(plant.num_velocities()))
 
     gravity = plant.CalcGravityGeneralizedForces(plant_context)
+    _check_force_within_effort_limits(loop, plant_context, gravity)
     state = plant.GetPositionsAndVelocities(plant_context)
     pid_context = loop.pid.GetMyMutableContextFromRoot(context)
     if np.all(loop.pid.gains["ki"] > 0):

@@ -300,7 +300,10 @@ def _check_type(key: str, value, kind):
 
 
 def _unknown_key_error(key: str, valid: typing.Iterable[str]) -> ScenarioError:
-    close = difflib.get_close_matches(key, list(valid), n=1, cutoff=0.5)
+    valid = list(valid)
+    # Candidates: every full key and every section ("wall", "admittance", ...).
+    sections = {k.rsplit(".", i)[0] for k in valid for i in range(1, k.count(".") + 1)}
+    close = difflib.get_close_matches(key, valid + sorted(sections), n=1, cutoff=0.5)
     hint = f"; did you mean '{close[0]}'?" if close else ""
     return ScenarioError(f"{key}: unknown scenario key{hint}")
 
@@ -374,11 +377,15 @@ def _require(condition: bool, key: str, allowed: str, value) -> None:
         raise ScenarioError(f"{key}: must be {allowed}, got {value!r}")
 
 
+# Stiffer than any contact this arm can make (steel on steel at this scale is ~1e9 N/m).
+MAX_STIFFNESS = 1e9
+
+
 def validate(scenario: Scenario) -> Scenario:
     """Range checks of every key; raises ScenarioError naming the first bad key."""
     s = scenario
     finite = math.isfinite
-    _require(finite(s.duration) and s.duration > 0, "duration", "> 0 s", s.duration)
+    _require(finite(s.duration) and 0 < s.duration <= 1e5, "duration", "in (0, 1e5] s", s.duration)
     _require(s.seed >= 0, "seed", ">= 0", s.seed)
     _require(
         finite(s.force_reference) and s.force_reference > 0,
@@ -393,24 +400,31 @@ def validate(scenario: Scenario) -> Scenario:
         "in front of the base (> 0 m along x)",
         w.position,
     )
-    _require(finite(w.stiffness) and w.stiffness > 0, "wall.stiffness", "> 0 N/m", w.stiffness)
-    previous = -math.inf
+    _require(
+        finite(w.stiffness) and 0 < w.stiffness <= MAX_STIFFNESS,
+        "wall.stiffness",
+        f"in (0, {MAX_STIFFNESS:g}] N/m",
+        w.stiffness,
+    )
+    previous = 0.0
     for i, step in enumerate(w.stiffness_steps):
         key = f"wall.stiffness_steps[{i}]"
         _require(
-            finite(step.stiffness) and step.stiffness > 0,
+            finite(step.stiffness) and 0 < step.stiffness <= MAX_STIFFNESS,
             key + ".stiffness",
-            "> 0 N/m",
+            f"in (0, {MAX_STIFFNESS:g}] N/m",
             step.stiffness,
         )
         _require(
             finite(step.time) and step.time >= previous,
             key + ".time",
-            "finite and not before the previous step",
+            ">= 0 s and not before the previous step",
             step.time,
         )
         previous = step.time
-    _require(finite(w.velocity), "wall.velocity", "finite (m/s)", w.velocity)
+    _require(
+        finite(w.velocity) and abs(w.velocity) <= 1.0, "wall.velocity", "in [-1, 1] m/s", w.velocity
+    )
     _require(
         finite(w.motion_start) and w.motion_start >= 0,
         "wall.motion_start",
@@ -429,16 +443,21 @@ def validate(scenario: Scenario) -> Scenario:
         finite(t.frequency) and t.frequency >= 0, "trajectory.frequency", ">= 0 Hz", t.frequency
     )
     a = s.admittance
-    _require(finite(a.gamma) and a.gamma > 0, "admittance.gamma", "> 0", a.gamma)
-    _require(finite(a.alpha) and a.alpha >= 0, "admittance.alpha", ">= 0 s", a.alpha)
+    _require(finite(a.gamma) and 0 < a.gamma <= 0.1, "admittance.gamma", "in (0, 0.1]", a.gamma)
+    _require(finite(a.alpha) and 0 <= a.alpha <= 10, "admittance.alpha", "in [0, 10] s", a.alpha)
     _require(
         finite(a.period) and a.period >= 0, "admittance.period", ">= 0 s (0 = continuous)", a.period
     )
-    _require(finite(a.max_push) and a.max_push > 0, "admittance.max_push", "> 0 m", a.max_push)
     _require(
-        finite(a.max_retract) and a.max_retract > 0,
+        finite(a.max_push) and 0 < a.max_push <= 0.5,
+        "admittance.max_push",
+        "in (0, 0.5] m",
+        a.max_push,
+    )
+    _require(
+        finite(a.max_retract) and 0 < a.max_retract <= 0.5,
         "admittance.max_retract",
-        "> 0 m",
+        "in (0, 0.5] m",
         a.max_retract,
     )
     for i, fault in enumerate(s.faults):
@@ -450,30 +469,69 @@ def validate(scenario: Scenario) -> Scenario:
         _require(finite(fault.end) and fault.end > fault.start, key + ".end", "> start", fault.end)
         _require(finite(fault.value), key + ".value", "finite", fault.value)
         if fault.kind == "stiffness_jump":
-            _require(fault.value > 0, key + ".value", "> 0 N/m for stiffness_jump", fault.value)
+            _require(
+                0 < fault.value <= MAX_STIFFNESS,
+                key + ".value",
+                f"in (0, {MAX_STIFFNESS:g}] N/m for stiffness_jump",
+                fault.value,
+            )
+        if fault.kind == "wall_retract":
+            _require(
+                fault.value > 0, key + ".value", "> 0 m (the wall moves away, +x)", fault.value
+            )
         if fault.kind == "sensor_saturated":
             _require(fault.value > 0, key + ".value", "> 0 N (the full-scale reading)", fault.value)
     p = s.pid
-    for name, allowed, minimum in (("kp", "> 0", 0.0), ("kd", ">= 0", None), ("ki", ">= 0", None)):
+    for name, minimum, maximum in (("kp", 0.0, 1e6), ("kd", None, 1e5), ("ki", None, 1e6)):
         gains = getattr(p, name)
         key = f"pid.{name}"
         _require(len(gains) == 3, key, "3 values (x, y, theta)", gains)
-        ok = all(finite(g) and (g > minimum if minimum is not None else g >= 0) for g in gains)
-        _require(ok, key, f"{allowed} on every axis", gains)
+        low = "> 0" if minimum is not None else ">= 0"
+        ok = all(
+            finite(g) and (g > 0 if minimum is not None else g >= 0) and g <= maximum for g in gains
+        )
+        _require(ok, key, f"{low} and <= {maximum:g} on every axis", gains)
     _require(finite(p.period) and p.period >= 0, "pid.period", ">= 0 s (0 = continuous)", p.period)
+    if a.enabled:
+        # Past max_push only the PID's slow integral could add force: Fr would not be reached.
+        needed = s.force_reference / p.kp[0]
+        _require(
+            a.max_push > needed,
+            "admittance.max_push",
+            f"> force_reference / pid.kp[0] = {needed:.3g} m (the PID's push at the bound, "
+            f"Kp max_push, must exceed Fr)",
+            a.max_push,
+        )
     n = s.sensor
     _require(n.kind in ("ideal", "flexiforce"), "sensor.kind", "'ideal' or 'flexiforce'", n.kind)
-    _require(finite(n.noise_std) and n.noise_std >= 0, "sensor.noise_std", ">= 0 N", n.noise_std)
+    if n.kind == "flexiforce":
+        # A reference the sensor cannot read would wind the admittance up forever.
+        from systems.flexiforce import FlexiForceSensor
+
+        full_scale = FlexiForceSensor().saturation_force
+        _require(
+            s.force_reference < 0.9 * full_scale,
+            "force_reference",
+            f"< {0.9 * full_scale:.4g} N with sensor.kind=flexiforce (90 % of the A201's "
+            f"{full_scale:.4g} N full scale)",
+            s.force_reference,
+        )
     _require(
-        finite(n.noise_period) and n.noise_period > 0,
+        finite(n.noise_std) and 0 <= n.noise_std <= 100,
+        "sensor.noise_std",
+        "in [0, 100] N",
+        n.noise_std,
+    )
+    _require(
+        finite(n.noise_period) and n.noise_period >= 1e-5,
         "sensor.noise_period",
-        "> 0 s",
+        ">= 1e-5 s (a 100 kHz ADC)",
         n.noise_period,
     )
     _require(
-        finite(n.filter_cutoff) and n.filter_cutoff > 0,
+        finite(n.filter_cutoff) and 0 < n.filter_cutoff <= 1e6,
         "sensor.filter_cutoff",
-        "> 0 Hz",
+        "in (0, 1e6] Hz",
         n.filter_cutoff,
     )
     r = s.arm
@@ -497,7 +555,12 @@ def validate(scenario: Scenario) -> Scenario:
         "one of " + ", ".join(_INTEGRATION_SCHEMES),
         c.integration_scheme,
     )
-    _require(finite(c.accuracy) and c.accuracy > 0, "simulator.accuracy", "> 0", c.accuracy)
+    _require(
+        finite(c.accuracy) and 0 < c.accuracy <= 0.1,
+        "simulator.accuracy",
+        "in (0, 0.1]",
+        c.accuracy,
+    )
     _require(
         finite(c.max_step_size) and c.max_step_size > 0,
         "simulator.max_step_size",
@@ -534,8 +597,11 @@ def _read_source(source: str | Path | None) -> tuple[dict, str]:
         )
     try:
         data = yaml_load(filename=str(path))
-    except RuntimeError as error:
-        raise ScenarioError(f"scenario: {path} is not valid YAML: {error}") from None
+    except Exception as error:  # PyYAML's YAMLError (syntax) or pydrake's RuntimeError
+        where = getattr(error, "problem_mark", None)
+        at = f" at line {where.line + 1}, column {where.column + 1}" if where else ""
+        problem = getattr(error, "problem", None) or str(error).splitlines()[0]
+        raise ScenarioError(f"scenario: {path} is not valid YAML{at}: {problem}") from None
     if data is None:
         data = {}
     if not isinstance(data, dict):

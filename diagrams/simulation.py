@@ -207,12 +207,15 @@ def compute_metrics(result: SimulationResult) -> dict:
     for fault in scenario.faults:
         during = _window(time, fault.start, min(fault.end, duration))
         recovery_end = min([e[1] for e in events if e[1] > fault.end] + [duration])
+        after = _window(time, fault.end, recovery_end)
         metrics["faults"].append(
             {
                 "kind": fault.kind,
                 "start": fault.start,
                 "end": fault.end,
                 "worst_force_during": float(np.max(force[during])) if during.any() else None,
+                # The danger of some faults comes when they end (a wall snapping back).
+                "peak_force_after": float(np.max(force[after])) if after.any() else None,
                 "recovery_time": _settling_time(
                     time, averaged_force, reference, fault.end, recovery_end
                 ),

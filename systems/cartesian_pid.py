@@ -41,9 +41,9 @@ def CartesianPid_(T):
         differentiated (its derivative would carry the force noise). Torques are clipped to
         the actuators' effort limits read from the plant (the URDF), and mapped to the
         actuation vector through the plant's actuation matrix. There is no gravity
-        compensation, as in the paper: the integral term carries the arm's weight. The
-        integral is frozen while any actuator saturates (conditional-integration
-        anti-windup), so a blocked arm does not wind it up.
+        compensation, as in the paper: the integral term carries the arm's weight. While an
+        actuator saturates, back-calculation anti-windup pulls the integral back (see
+        ``_integral_rate``), so a blocked arm does not wind it up.
 
         With ``period > 0`` the controller is sampled: at each sample the torque is computed
         and held (zero-order hold) and the integral advances by period * ec.
@@ -96,6 +96,11 @@ def CartesianPid_(T):
             if not (np.isfinite(period) and period >= 0):
                 raise ValueError(f"period must be >= 0 s (0 = continuous), got {period}")
             self._period = float(period)
+            # Anti-windup tracking time per axis, s: Astrom and Hagglund's sqrt(Ti Td) =
+            # sqrt(Kd / Ki), at least 10 ms and 5 sampling periods (a stable discrete update).
+            with np.errstate(divide="ignore", invalid="ignore"):
+                tracking = np.sqrt(np.where(self._ki > 0, self._kd / self._ki, 0.0))
+            self._tracking_time = np.maximum(tracking, max(0.01, 5.0 * self._period))
             # u = B^T tau, with B (nv x nu) the actuation matrix of single-dof actuators.
             selection = np.zeros((num_actuators, num_velocities))
             limits = []
@@ -215,15 +220,31 @@ def CartesianPid_(T):
             wrench = self._kp * error + self._kd * error_rate + self._ki * integral
             return self._actuation_from_generalized @ (jacobian.T @ wrench)
 
-        def _saturated(self, torque) -> bool:
-            values = torque if T is float else np.array([t.value() for t in torque])
-            return bool(np.any(np.abs(values) > self._effort_limits))
-
         def _integral_rate(self, integral, error, error_rate, jacobian):
-            """dz/dt = ec, frozen while any actuator saturates (anti-windup)."""
-            if self._saturated(self._unclipped(integral, error, error_rate, jacobian)):
-                return error * 0.0
-            return error
+            """dz/dt = ec + back-calculation while an actuator saturates (anti-windup).
+
+            With dtau = clip(tau) - tau (zero unless saturated) mapped back to a Cartesian
+            wrench dF = J^-T dtau, dz_i/dt = ec_i + dF_i / (Ki_i Tt_i): the integral is
+            pulled back until the torque it asks for is what the actuators give. (A hard
+            freeze switches the right-hand side on the limit and stalls an error-controlled
+            integrator.) The wrench is recovered with the Jacobian's value only: the term is
+            zero, with zero derivative, wherever the loop is linearized unsaturated.
+            """
+            torque = self._unclipped(integral, error, error_rate, jacobian)
+            values = torque if T is float else np.array([t.value() for t in torque])
+            if not np.any(np.abs(values) > self._effort_limits):
+                return error
+            excess = self._actuation(integral, error, error_rate, jacobian) - torque
+            jacobian_value = np.array(
+                [[j if T is float else j.value() for j in row] for row in jacobian]
+            )
+            to_wrench = np.linalg.pinv(self._actuation_from_generalized @ jacobian_value.T)
+            wrench_excess = to_wrench @ excess
+            rate = np.array(error, dtype=object if T is not float else float)
+            for i in range(3):
+                if self._ki[i] > 0:
+                    rate[i] = error[i] + wrench_excess[i] / (self._ki[i] * self._tracking_time[i])
+            return rate
 
         def _actuation(self, integral, error, error_rate, jacobian):
             torque = self._unclipped(integral, error, error_rate, jacobian)

@@ -167,9 +167,14 @@ def CompliantWall_(T):
         # --- the law ----------------------------------------------------------------------
         def _force(self, context):
             """The compressive contact force F >= 0 (N) at the context's time and state."""
-            self._plant.SetPositionsAndVelocities(
-                self._plant_context, self.estimated_state_input.Eval(context)
-            )
+            state = self.estimated_state_input.Eval(context)
+            values = state if T is float else [x.value() for x in state]
+            if not np.all(np.isfinite(values)):
+                # Say so here, rather than let the plant abort on a non-finite state.
+                raise RuntimeError(
+                    f"CompliantWall: the arm's state is not finite at t = {context.get_time()} s"
+                )
+            self._plant.SetPositionsAndVelocities(self._plant_context, state)
             tip = self._plant.CalcPointsPositions(
                 self._plant_context, self._frame, self._origin, self._world
             )[0, 0]

@@ -61,8 +61,10 @@ def OptimalAdmittance_(T):
 
         Safety (issue 7): a reading that is not finite (a broken sensor) freezes the integral
         and takes E = 0, holding Xr at its settled value; Xr stays within
-        [-max_retract, max_push] and the integral stops while it would drive Xr past a
-        bound (anti-windup), so the block recovers at once when the error changes sign.
+        [-max_retract, max_push], and past a bound a back-calculation term
+        (clamped Xr - unclamped Xr) / (Gamma K tau_aw), tau_aw = max(10 ms, 5 period), pulls
+        the integral back (anti-windup), so the block leaves the bound within a few tau_aw
+        once the force error changes sign.
 
         With ``period > 0`` the law is sampled as a digital controller would run it: at each
         sample k, Xr[k] = Gamma K (z[k] + alpha (E[k] - E0)) is latched (zero-order hold) and
@@ -126,6 +128,9 @@ def OptimalAdmittance_(T):
             for name, bound in (("max_push", self._max_push), ("max_retract", self._max_retract)):
                 if np.any(np.isnan(bound)) or np.any(bound <= 0):
                     raise ValueError(f"{name} must be > 0 m, got {bound.tolist()}")
+            # Back-calculation anti-windup time constant, s: fast next to the force loop
+            # (~0.1 s), slow enough to be a stable discrete update at the sampling period.
+            self._windup_time_constant = max(0.01, 5.0 * self._period)
             # The gains of the equivalent PI law on the force error.
             self._integral_gain = self._gamma * self._stiffness
             self._proportional_gain = self._integral_gain * self._alpha
@@ -223,18 +228,23 @@ def OptimalAdmittance_(T):
                 )
                 rate = error
                 offset_value = offset if T is float else offset.value()
-                error_value = error if T is float else error.value()
-                # Xr stays within [-max_retract, max_push]; while it is held at a bound the
-                # integral stops moving outward (anti-windup), so it leaves the bound as soon
-                # as the force error changes sign.
+                # Xr stays within [-max_retract, max_push]. Past a bound, back-calculation
+                # anti-windup pulls the integral back towards the bound with the time
+                # constant _windup_time_constant: the unclamped Xr exceeds the bound by at
+                # most Gamma K tau_aw |E|, so Xr leaves the bound within a few tau_aw once
+                # the force error changes sign. (A hard freeze of dz/dt switches the
+                # right-hand side on the bound and stalls an error-controlled integrator.)
                 if offset_value > self._max_push[i]:
-                    offset = T(self._max_push[i])
-                    if error_value > 0:
-                        rate = T(0.0)
+                    clamped = T(self._max_push[i])
                 elif offset_value < -self._max_retract[i]:
-                    offset = T(-self._max_retract[i])
-                    if error_value < 0:
-                        rate = T(0.0)
+                    clamped = T(-self._max_retract[i])
+                else:
+                    clamped = None
+                if clamped is not None:
+                    rate = error + (clamped - offset) / (
+                        self._integral_gain[i] * self._windup_time_constant
+                    )
+                    offset = clamped
                 offsets.append(offset)
                 rates.append(rate)
             return offsets, rates

@@ -78,16 +78,29 @@ def test_torque_is_clipped_to_the_urdf_effort_limits(arm_plant):
     assert np.any(np.abs(unclipped) > limits)
 
 
-def test_integral_freezes_while_saturated(arm_plant):
-    """Anti-windup: no integration while an actuator is at its effort limit."""
+def test_back_calculation_while_saturated(arm_plant):
+    """Anti-windup: while an actuator is at its limit the integral is pulled back.
+
+    dz/dt = ec + J^-T (clip(tau) - tau) / (Ki Tt) with Tt = sqrt(Kd / Ki) (>= 10 ms): the
+    correction is exactly the Cartesian wrench the clipping removed, scaled by 1 / (Ki Tt).
+    """
     pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI)
     q = np.array([-0.45, 1.66, 0.36])
-    X, _ = eq18(q)
+    X, J = eq18(q)
     small = _pid_context(pid, q, np.zeros(3), X + [1e-4, 0, 0], np.zeros(3), np.zeros(3))
     np.testing.assert_allclose(pid.EvalTimeDerivatives(small).CopyToVector(), [1e-4, 0, 0])
-    blocked = _pid_context(pid, q, np.zeros(3), X + [0.5, 0, 0], np.zeros(3), np.zeros(3))
-    assert np.any(np.abs(pid.actuation_output.Eval(blocked)) == pid.effort_limits)
-    np.testing.assert_allclose(pid.EvalTimeDerivatives(blocked).CopyToVector(), 0.0)
+    error = np.array([0.5, 0.0, 0.0])
+    blocked = _pid_context(pid, q, np.zeros(3), X + error, np.zeros(3), np.zeros(3))
+    torque = pid.actuation_output.Eval(blocked)
+    assert np.any(np.abs(torque) == pid.effort_limits)
+    unclipped = J.T @ (np.array(KP) * error)
+    wrench_excess = np.linalg.solve(J.T, torque - unclipped)
+    tracking = np.maximum(np.sqrt(np.array(KD) / np.array(KI)), 0.01)
+    expected = error + wrench_excess / (np.array(KI) * tracking)
+    rate = pid.EvalTimeDerivatives(blocked).CopyToVector()
+    np.testing.assert_allclose(rate, expected, rtol=1e-9, atol=1e-12)
+    # It opposes the error along x: the integral unwinds instead of growing.
+    assert rate[0] < 0
 
 
 def test_angle_error_is_wrapped(arm_plant):

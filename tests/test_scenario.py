@@ -45,22 +45,34 @@ def test_overrides_by_dotted_key():
     assert s.simulator.integration_scheme == "implicit_euler"
 
 
+def test_force_reference_beyond_the_sensor_is_rejected():
+    with pytest.raises(ScenarioError, match=r"force_reference: must be < 99.92 N with sensor"):
+        load_scenario(
+            "paper_stiffness_step",
+            ["sensor.kind=flexiforce", "admittance.max_push=0.5", "force_reference=150"],
+        )
+
+
 @pytest.mark.parametrize(
     "override, message",
     [
         ("wall.stifness=2e4", "wall.stifness: unknown scenario key; did you mean 'wall.stiffness'"),
         ("wall.stiffness=abc", "wall.stiffness: expected a number"),
-        ("wall.stiffness=-5", "wall.stiffness: must be > 0 N/m"),
-        ("admittance.gamma=0", "admittance.gamma: must be > 0"),
-        ("admittance.alpha=-0.1", "admittance.alpha: must be >= 0"),
+        ("wall.stiffness=-5", "wall.stiffness: must be in (0, 1e+09] N/m"),
+        ("admittance.gamma=0", "admittance.gamma: must be in (0, 0.1]"),
+        ("admittance.alpha=-0.1", "admittance.alpha: must be in [0, 10] s"),
         ("admittance.enabled=maybe", "admittance.enabled: expected true or false"),
-        ("duration=0", "duration: must be > 0 s"),
+        ("duration=0", "duration: must be in (0, 1e5] s"),
         ("sensor.kind=strain_gauge", "sensor.kind: must be 'ideal' or 'flexiforce'"),
-        ("sensor.noise_std=-1", "sensor.noise_std: must be >= 0 N"),
+        ("sensor.noise_std=-1", "sensor.noise_std: must be in [0, 100] N"),
         ("pid.kp=[1, 2]", "pid.kp: must be 3 values"),
         ("seed=1.5", "seed: expected an integer"),
         ("simulator.integration_scheme=magic", "simulator.integration_scheme: must be one of"),
         ("wall.stiffness", "expected KEY=VALUE"),
+        ("admittance.alpha=1e300", "admittance.alpha: must be in [0, 10] s"),
+        ("wall.stiffness=1e12", "wall.stiffness: must be in (0, 1e+09] N/m"),
+        ("force_reference=60", "admittance.max_push: must be > force_reference / pid.kp[0]"),
+        ("wal.stiffness=1", "wal.stiffness: unknown scenario key; did you mean 'wall"),
     ],
 )
 def test_bad_input_names_the_key(override, message):

@@ -1,0 +1,208 @@
+"""Faults injected from the scenario (issue 7): the controller's documented behaviour.
+
+Every closed-loop case runs the stiffness-step arm against the 5e4 N/m wall (no Ke step),
+Fr = 5 N, with one fault from t = 1.5 s to t = 2.0 s, and checks:
+
+* no NaN reaches the plant: every logged joint torque is finite;
+* the force returns to Fr after the fault: within 5 % (the settling band of the metrics)
+  in under 1 s, and the mean |F - Fr| over the last 0.5 s is under 1 % of Fr (2 % with
+  the FlexiForce noise);
+* the worst force during the fault is reported in metrics.json, and bounded as the
+  behaviour of each fault predicts.
+
+The sensor faults run in the default suite with the ideal sensor (a few seconds each); the
+wall and stiffness faults and the FlexiForce variants are marked slow.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from pydrake.autodiffutils import AutoDiffXd
+
+from diagrams.scenario import ScenarioError, load_scenario
+from diagrams.simulation import run_scenario
+from systems.optimal_admittance import OptimalAdmittance
+from systems.sensor_fault import SensorFault
+
+FR = 5.0
+START, END = 1.5, 2.0
+
+
+def _run(kind: str, value: float = 0.0, sensor: str = "ideal"):
+    scenario = load_scenario(
+        "paper_stiffness_step",
+        [
+            "duration=3.5",
+            "wall.stiffness_steps=[]",
+            f"sensor.kind={sensor}",
+            f"faults=[{{kind: {kind}, start: {START}, end: {END}, value: {value}}}]",
+        ],
+    )
+    result = run_scenario(scenario)
+    (fault,) = result.metrics["faults"]
+    assert fault["kind"] == kind and fault["start"] == START and fault["end"] == END
+    return result, fault
+
+
+def _check_common(result, fault) -> None:
+    # The FlexiForce noise leaves a ripple of about 0.1 N: 2 % of Fr on average (the core
+    # issue's tracking criterion); the ideal sensor settles to 1 %.
+    tolerance = 0.02 if result.scenario.sensor.kind == "flexiforce" else 0.01
+    assert result.metrics["finite_actuation"]
+    assert np.all(np.isfinite(result.actuation))
+    assert np.all(np.isfinite(result.pose))
+    assert math.isfinite(fault["worst_force_during"])
+    assert fault["recovery_time"] is not None and fault["recovery_time"] < 1.0
+    late = result.time > result.time[-1] - 0.5
+    assert np.mean(np.abs(result.force[late] - FR)) < tolerance * FR
+
+
+def _during(result):
+    return (result.time >= START) & (result.time < END)
+
+
+# --- the blocks' fault behaviour, by hand ---------------------------------------------------
+
+
+def test_sensor_fault_replaces_the_reading_only_inside_its_window():
+    fault = SensorFault([("sensor_stuck", 1.0, 2.0, 3.0), ("sensor_nan", 3.0, 4.0, 0.0)])
+    context = fault.CreateDefaultContext()
+    fault.measured_force_input.FixValue(context, [7.0])
+    for time, expected in ((0.5, 7.0), (1.0, 3.0), (1.99, 3.0), (2.0, 7.0), (3.5, math.nan)):
+        context.SetTime(time)
+        reported = fault.reported_force_output.Eval(context)[0]
+        if math.isnan(expected):
+            assert math.isnan(reported)
+        else:
+            assert reported == expected
+
+
+def test_admittance_holds_its_reference_on_an_invalid_measurement():
+    block = OptimalAdmittance(gamma=1e-5, alpha=0.1, stiffness=2500.0)
+    context = block.CreateDefaultContext()
+    context.SetContinuousState([40.0])
+    block.desired_force_input.FixValue(context, [5.0])
+    block.measured_force_input.FixValue(context, [5.0])  # settled: E = 0
+    settled = block.reference_offset_output.Eval(context)[0]
+    block.measured_force_input.FixValue(context, [math.nan])
+    # The integral stops and Xr stays where E = 0 put it.
+    assert block.EvalTimeDerivatives(context).CopyToVector()[0] == 0.0
+    assert block.reference_offset_output.Eval(context)[0] == settled == 2.5e-2 * 40.0
+
+
+def test_admittance_travel_bound_and_back_calculation():
+    """Xr = Gamma K (z + alpha E) is clamped to max_push; past it the integral is pulled back
+    with rate E + (Xr_clamped - Xr) / (Gamma K tau_aw), tau_aw = 10 ms."""
+    gain = 1e-5 * 2500.0
+    block = OptimalAdmittance(
+        gamma=1e-5, alpha=0.1, stiffness=2500.0, max_push=0.01, max_retract=0.02
+    )
+    context = block.CreateDefaultContext()
+    block.desired_force_input.FixValue(context, [5.0])
+    block.measured_force_input.FixValue(context, [1.0])  # E = 4 N: pushes into the wall
+    context.SetContinuousState([1.0])  # unclamped Xr = 0.025 (1 + 0.4) = 0.035 m
+    assert block.reference_offset_output.Eval(context)[0] == pytest.approx(0.01)
+    rate = block.EvalTimeDerivatives(context).CopyToVector()[0]
+    assert rate == pytest.approx(4.0 + (0.01 - gain * 1.4) / (gain * 0.01))
+    assert rate < 0  # winding back, not up
+    # Inside the bounds the law is untouched: dz/dt = E.
+    context.SetContinuousState([0.0])
+    assert block.EvalTimeDerivatives(context).CopyToVector()[0] == pytest.approx(4.0)
+    assert block.reference_offset_output.Eval(context)[0] == pytest.approx(gain * 0.4)
+    # Retract bound, too high a reading.
+    block.measured_force_input.FixValue(context, [111.0])
+    context.SetContinuousState([-2.0])
+    assert block.reference_offset_output.Eval(context)[0] == pytest.approx(-0.02)
+    assert block.EvalTimeDerivatives(context).CopyToVector()[0] > 0
+
+
+def test_admittance_with_faults_converts_to_autodiff():
+    block = OptimalAdmittance(gamma=1e-5, alpha=0.1, stiffness=2500.0, max_push=0.01)
+    block_ad = block.ToAutoDiffXd()
+    context = block_ad.CreateDefaultContext()
+    block_ad.desired_force_input.FixValue(context, [AutoDiffXd(5.0, [0.0])])
+    block_ad.measured_force_input.FixValue(context, [AutoDiffXd(4.0, [1.0])])
+    offset = block_ad.reference_offset_output.Eval(context)[0]
+    # dXr/dF = -Gamma K alpha inside the bounds.
+    assert offset.derivatives()[0] == pytest.approx(-1e-5 * 2500.0 * 0.1)
+
+
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("faults=[{kind: sensor_fire, start: 1, end: 2}]", "faults[0].kind: must be one of"),
+        ("faults=[{kind: sensor_nan, start: 2, end: 1}]", "faults[0].end: must be > start"),
+        ("faults=[{kind: wall_retract, start: 1, end: 2, value: -0.01}]", "faults[0].value"),
+        ("faults=[{kind: stiffness_jump, start: 1, end: 2, value: 0}]", "faults[0].value"),
+        ("faults=[{kind: sensor_nan, start: -1, end: 2}]", "faults[0].start: must be >= 0"),
+    ],
+)
+def test_bad_faults_are_rejected_with_the_key(override, message):
+    with pytest.raises(ScenarioError, match=message.replace("[", r"\[").replace("]", r"\]")):
+        load_scenario("paper_stiffness_step", [override])
+
+
+# --- closed loop ---------------------------------------------------------------------------
+
+
+def test_sensor_nan_holds_the_reference_and_recovers():
+    result, fault = _run("sensor_nan")
+    _check_common(result, fault)
+    during = _during(result)
+    xr = result.reference_offset[:, 0]
+    # Xr held: it moves by under 0.1 mm (the arm stays put, so does the force).
+    assert np.ptp(xr[during]) < 1e-4
+    assert fault["worst_force_during"] < 1.1 * FR
+
+
+def test_sensor_zero_pushes_no_further_than_the_travel_bound():
+    result, fault = _run("sensor_zero")
+    _check_common(result, fault)
+    xr = result.reference_offset[:, 0]
+    max_push = result.scenario.admittance.max_push
+    assert np.max(xr) <= max_push + 1e-9
+    # A sensor reading 0 N makes the law push Xr to the bound. Statically the PID then
+    # presses with at most Kp max_push plus what its integral held before (< Fr); the step
+    # of Xr to the bound overshoots, by less than 100 % for this damped contact mode.
+    push = result.scenario.pid.kp[0] * max_push
+    late_in_fault = (result.time > END - 0.1) & (result.time < END)
+    assert FR < np.max(result.force[late_in_fault]) < push + FR
+    assert fault["worst_force_during"] < 2.0 * push + FR
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sensor", ["ideal", "flexiforce"])
+def test_sensor_stuck_and_saturated(sensor):
+    stuck, fault = _run("sensor_stuck", 2.0, sensor)
+    _check_common(stuck, fault)
+    assert np.max(stuck.reference_offset[:, 0]) <= stuck.scenario.admittance.max_push + 1e-9
+    saturated, fault = _run("sensor_saturated", 111.0, sensor)
+    _check_common(saturated, fault)
+    # A full-scale reading makes the law retract, never past max_retract; the force drops.
+    xr = saturated.reference_offset[:, 0]
+    assert np.min(xr) >= -saturated.scenario.admittance.max_retract - 1e-9
+    assert fault["worst_force_during"] < 1.1 * FR
+
+
+@pytest.mark.slow
+def test_wall_retract_loses_contact_and_comes_back():
+    result, fault = _run("wall_retract", 0.02)
+    _check_common(result, fault)
+    during = _during(result)
+    assert np.min(result.force[during]) == 0.0  # the wall jumped away: contact lost
+    xr = result.reference_offset[:, 0]
+    assert np.max(xr) <= result.scenario.admittance.max_push + 1e-9
+    # The wall snaps back onto a tip that followed it by at most max_push: the force on
+    # return is bounded by Ke times that travel (plus the settled penetration).
+    ke = result.scenario.wall.stiffness
+    assert np.max(result.force) < ke * (result.scenario.admittance.max_push + FR / ke) * 1.1
+
+
+@pytest.mark.slow
+def test_stiffness_jump_is_the_one_fault_no_controller_prevents():
+    result, fault = _run("stiffness_jump", 1e7)
+    _check_common(result, fault)
+    # At fixed penetration the force jumps with Ke before any controller can act:
+    # F = Fr * 1e7 / 5e4 = 1000 N at the instant of the jump.
+    assert fault["worst_force_during"] == pytest.approx(FR * 1e7 / 5e4, rel=0.02)
