@@ -3,7 +3,11 @@
     admittance simulate  [SCENARIO] [--set KEY=VALUE ...] [--out DIR] [--force]
     admittance stability [SCENARIO] [--set KEY=VALUE ...] [--out DIR] [--force] [--quick]
     admittance diagram   [SCENARIO] [--set KEY=VALUE ...] --out FILE
+    admittance compare   [SCENARIO] [--set KEY=VALUE ...] [--controllers K,...] [--out DIR]
     admittance bench     [SCENARIO] [--set KEY=VALUE ...] [--repeat N] [--json FILE]
+    admittance sweep     [SCENARIO] [--set KEY=VALUE ...] [--grid KEY=SPEC ...]
+                         [--random KEY=DIST ...] [--samples N] [--seed S] [--workers N]
+                         [--engine local|dask] [--scheduler ADDRESS] --out DIR [--force]
 
 Errors in the input print one line naming the key and exit with status 2; a run that fails
 (a diverging simulation) prints one line and exits with status 1.
@@ -12,6 +16,7 @@ Errors in the input print one line naming the key and exit with status 2; a run 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -105,6 +110,32 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from diagrams.compare import compare_controllers, format_table, write_comparison
+    from diagrams.force_controllers import baseline_gains
+    from diagrams.scenario import CONTROLLER_KINDS
+
+    kinds = [k.strip() for k in args.controllers.split(",")] if args.controllers else None
+    for kind in kinds or []:
+        if kind not in CONTROLLER_KINDS:
+            raise ScenarioError(
+                f"--controllers: {kind!r} is not a controller; allowed: "
+                + ", ".join(CONTROLLER_KINDS)
+            )
+    scenario = load_scenario(args.scenario, args.overrides)
+    out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_compare"
+    check_output_dir(out, overwrite=args.force)
+    scenario, runs = compare_controllers(
+        args.scenario, args.overrides, kinds or list(CONTROLLER_KINDS), workers=args.workers
+    )
+    gains = ", ".join(f"{k} {v:.3g}" for k, v in baseline_gains(scenario).items())
+    print(f"{scenario.name}: Fr = {scenario.force_reference:g} N; baseline gains ({gains})")
+    print(format_table(runs), end="")
+    write_comparison(scenario, runs, out, overwrite=args.force)
+    print(f"wrote {out}/: table.txt, table.csv, metrics.json, force.png")
+    return 0
+
+
 def _cmd_stability(args: argparse.Namespace) -> int:
     from diagrams.stability_report import MapAxes, analyse, format_report, write_report
 
@@ -116,6 +147,45 @@ def _cmd_stability(args: argparse.Namespace) -> int:
     write_report(report, out, overwrite=args.force)
     print(format_report(report.summary), end="")
     print(f"wrote {out}/: report.json, report.txt, eigenvalues, maps and V(t) as PNG")
+    return 0
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from diagrams.sweep import SweepWorkerError, define_sweep, run_sweep
+
+    definition = define_sweep(
+        args.scenario,
+        args.overrides,
+        grid=args.grid,
+        random=args.random,
+        samples=args.samples,
+        seed=args.seed,
+    )
+    try:
+        outcome = run_sweep(
+            definition,
+            args.out,
+            workers=args.workers,
+            engine=args.engine,
+            scheduler=args.scheduler,
+            force=args.force,
+        )
+    except KeyboardInterrupt:
+        print(
+            f"admittance: interrupted; the finished points are kept in {args.out}/points.jsonl: "
+            f"run the same command again to resume",
+            file=sys.stderr,
+        )
+        return 130
+    except SweepWorkerError as error:
+        print(f"admittance: error: {error}", file=sys.stderr)
+        return EXIT_RUN_FAILED
+    print(outcome.summary, end="")
+    print(
+        f"ran {outcome.ran} points in {outcome.elapsed:.1f} s ({outcome.skipped} skipped); "
+        f"wrote {outcome.out_dir}/: points.jsonl, table.csv, summary.txt, "
+        f"{len(outcome.files) - 3} summary plot(s)"
+    )
     return 0
 
 
@@ -156,6 +226,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     stability.set_defaults(handler=_cmd_stability)
 
+    compare = commands.add_parser(
+        "compare",
+        help="run every force controller (the paper's and the baselines) on one scenario: "
+        "a table and overlaid force plots",
+    )
+    _add_scenario_arguments(compare)
+    compare.add_argument(
+        "--controllers", metavar="K,...", help="a comma list of controller.kind values (all)"
+    )
+    compare.add_argument("--workers", type=int, help="parallel runs (default: the cores)")
+    compare.add_argument("--out", help="output folder (default: results/<scenario>_compare)")
+    compare.add_argument("--force", action="store_true", help="replace an existing --out folder")
+    compare.set_defaults(handler=_cmd_compare)
+
     bench = commands.add_parser(
         "bench",
         help="time a scenario (median of --repeat runs after a warm-up) against the bare "
@@ -165,6 +249,62 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--repeat", type=int, default=3, help="timed runs (default 3)")
     bench.add_argument("--json", metavar="FILE", help="also write the report as JSON")
     bench.set_defaults(handler=_cmd_bench)
+
+    sweep = commands.add_parser(
+        "sweep",
+        help="run a grid or Monte Carlo over scenario keys in parallel: one table, summary "
+        "plots; an interrupted sweep resumes where it stopped",
+    )
+    _add_scenario_arguments(sweep)
+    sweep.add_argument(
+        "--grid",
+        action="append",
+        default=[],
+        metavar="KEY=SPEC",
+        help="sweep a key over 1e4,5e4,1e5 or linspace:A:B:N or logspace:A:B:N (repeatable: "
+        "the Cartesian product)",
+    )
+    sweep.add_argument(
+        "--random",
+        action="append",
+        default=[],
+        metavar="KEY=DIST",
+        help="draw a key from uniform:A:B, loguniform:A:B, normal:MEAN:STD, randint:A:B or "
+        "choice:a,b,c (repeatable; needs --samples)",
+    )
+    sweep.add_argument(
+        "--samples", type=int, metavar="N", help="Monte Carlo samples (per grid point)"
+    )
+    sweep.add_argument(
+        "--seed", type=int, default=0, metavar="S", help="seed of the draws (default 0)"
+    )
+    sweep.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="parallel processes (default: all cores, os.cpu_count())",
+    )
+    sweep.add_argument(
+        "--engine",
+        choices=("local", "dask"),
+        default="local",
+        help="local process pool (default) or a dask.distributed cluster (pip install -e .[dask])",
+    )
+    sweep.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="with --engine dask: the scheduler to use (default: start a LocalCluster)",
+    )
+    sweep.add_argument(
+        "--out",
+        required=True,
+        metavar="DIR",
+        help="sweep folder: points.jsonl (the resumable record), table.csv, summary.txt, PNG",
+    )
+    sweep.add_argument(
+        "--force", action="store_true", help="start over in a folder that holds another sweep"
+    )
+    sweep.set_defaults(handler=_cmd_sweep)
     return parser
 
 
@@ -181,6 +321,9 @@ def main(argv: list[str] | None = None) -> int:
     except (ScenarioError, OutputExistsError, DiagramPictureError) as error:
         print(f"admittance: error: {error}", file=sys.stderr)
         return EXIT_INPUT_ERROR
+    except BrokenPipeError:  # the reader went away (e.g. `| head`): not an error of the run
+        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 (so the exit flush stays quiet)
+        return 0
     except KeyboardInterrupt:
         print("admittance: interrupted; no result was written", file=sys.stderr)
         return 130

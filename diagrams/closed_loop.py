@@ -24,12 +24,12 @@ from pydrake.systems.primitives import (
     VectorLogSink,
 )
 
+from diagrams.force_controllers import WALL_NORMAL_AXIS, AddForceController
 from diagrams.scenario import Scenario, ScenarioError
 from systems.cartesian_pid import CartesianPid
 from systems.compliant_wall import CompliantWall
 from systems.desired_trajectory import DesiredTrajectory
 from systems.flexiforce import FlexiForceSensor
-from systems.optimal_admittance import OptimalAdmittance
 from systems.planar_kinematics import PlanarFrameKinematics
 from systems.sensor_fault import SensorFault
 
@@ -42,8 +42,6 @@ __all__ = [
 ]
 
 GRAVITY_W = np.array([0.0, -9.81, 0.0])
-# The wall-normal axis of X = (x, y, theta), the only force-controlled axis in the paper.
-WALL_NORMAL_AXIS = 0
 
 
 @dataclass
@@ -57,7 +55,8 @@ class ClosedLoop:
     pid: CartesianPid
     wall: CompliantWall
     sensor: FlexiForceSensor
-    admittance: OptimalAdmittance | None
+    # The force controller of scenario.controller_kind (None for pid_only).
+    admittance: object | None
     random_sources: list[RandomSource] = field(default_factory=list)
     loggers: dict[str, VectorLogSink] = field(default_factory=dict)
     scene_graph: object | None = None
@@ -208,22 +207,9 @@ def BuildClosedLoop(
         builder.Connect(trajectory.desired_position_output, commanded.get_input_port(0))
         builder.ExportInput(commanded.get_input_port(1), "reference_offset")
         builder.Connect(commanded.get_output_port(), pid.commanded_position_input)
-    elif scenario.admittance.enabled:
-        admittance_config = scenario.admittance
-        admittance = builder.AddSystem(
-            OptimalAdmittance(
-                gamma=admittance_config.gamma,
-                alpha=admittance_config.alpha,
-                # K of eq. 10 is the PID's stiffness on the wall-normal axis (paper-notes 4).
-                stiffness=pid_config.kp[WALL_NORMAL_AXIS],
-                force_axes=[WALL_NORMAL_AXIS],
-                num_axes=3,
-                period=admittance_config.period,
-                max_push=admittance_config.max_push,
-                max_retract=admittance_config.max_retract,
-            )
-        )
-        admittance.set_name("optimal_admittance")
+    else:
+        admittance = AddForceController(builder, scenario)
+    if admittance is not None:
         if analysis:
             # Fr is an input of the analysis diagram (fix it in the context), so that the
             # linear model has Fr -> contact force.
@@ -233,12 +219,14 @@ def BuildClosedLoop(
             force_reference.set_name("force_reference")
             builder.Connect(force_reference.get_output_port(), admittance.desired_force_input)
         builder.Connect(measured_force_output, admittance.measured_force_input)
+        if hasattr(admittance, "desired_position_input"):  # eq. 6 subtracts Xd
+            builder.Connect(trajectory.desired_position_output, admittance.desired_position_input)
         commanded = builder.AddSystem(Adder(2, 3))
         commanded.set_name("commanded_position")
         builder.Connect(trajectory.desired_position_output, commanded.get_input_port(0))
         builder.Connect(admittance.reference_offset_output, commanded.get_input_port(1))
         builder.Connect(commanded.get_output_port(), pid.commanded_position_input)
-    else:
+    elif not open_admittance_loop:
         builder.Connect(trajectory.desired_position_output, pid.commanded_position_input)
 
     loggers = {}
@@ -402,7 +390,7 @@ def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
     if np.all(loop.pid.gains["ki"] > 0):
         loop.pid.set_integral(pid_context, loop.pid.holding_integral(state, -gravity))
 
-    if loop.admittance is not None:
+    if hasattr(loop.admittance, "set_initial_force_error"):
         measured = loop.sensor.measured_force_output.Eval(loop.sensor.GetMyContextFromRoot(context))
         admittance_context = loop.admittance.GetMyMutableContextFromRoot(context)
         loop.admittance.set_initial_force_error(

@@ -65,8 +65,11 @@ def FindContactEquilibrium(scenario: Scenario, *, tolerance: float = 1e-9) -> Eq
         ScenarioError: no equilibrium in contact (unreachable pose, or Newton fails).
     """
     frozen = static_scenario(scenario)
-    if not frozen.admittance.enabled:
-        raise ScenarioError("admittance.enabled: the contact equilibrium needs the admittance")
+    if frozen.controller_kind != "optimal_admittance":
+        raise ScenarioError(
+            "controller.kind, admittance.enabled: the contact equilibrium is built for the "
+            "paper's optimal_admittance (enabled)"
+        )
     loop = BuildClosedLoop(frozen, analysis=True)
     plant, diagram = loop.plant, loop.diagram
     context = diagram.CreateDefaultContext()

@@ -10,6 +10,7 @@ next run into the same place removes staging folders whose process is gone.
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import tempfile
@@ -17,7 +18,9 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["OutputExistsError", "atomic_output_dir", "check_output_dir"]
+import numpy as np
+
+__all__ = ["OutputExistsError", "atomic_output_dir", "check_output_dir", "json_safe"]
 
 INCOMPLETE_MARK = "INCOMPLETE"
 
@@ -92,3 +95,16 @@ def atomic_output_dir(out_dir: str | Path, overwrite: bool = True) -> Iterator[P
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
+
+
+def json_safe(value):
+    """`value` with numpy scalars as Python numbers and non-finite floats as None (JSON)."""
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, np.generic):
+        return json_safe(value.item())
+    return value

@@ -7,29 +7,16 @@ folder either holds a complete result or is left as it was.
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
 
-from diagrams.output import atomic_output_dir
+from diagrams.output import atomic_output_dir, json_safe
 from diagrams.scenario import scenario_to_yaml
 from diagrams.simulation import SimulationResult
 
 __all__ = ["write_results", "plot_errors", "plot_reference", "plot_force", "summary"]
-
-
-def _json_safe(value):
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_safe(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, np.generic):
-        return _json_safe(value.item())
-    return value
 
 
 def _finish(axis, ylabel: str, *, xlabel: str | None = None) -> None:
@@ -114,7 +101,7 @@ def write_results(result: SimulationResult, out_dir: str | Path, overwrite: bool
     with atomic_output_dir(out_dir, overwrite=overwrite) as staging:
         write_csv(result, staging / "timeseries.csv")
         (staging / "metrics.json").write_text(
-            json.dumps(_json_safe(result.metrics), indent=2) + "\n"
+            json.dumps(json_safe(result.metrics), indent=2) + "\n"
         )
         (staging / "scenario.yaml").write_text(scenario_to_yaml(result.scenario))
         for name, plot in FIGURES.items():

@@ -24,6 +24,8 @@ from pydrake.systems.analysis import SimulatorConfig
 __all__ = [
     "AdmittanceConfig",
     "ArmConfig",
+    "CONTROLLER_KINDS",
+    "ControllerConfig",
     "FAULT_KINDS",
     "FaultConfig",
     "LoggingConfig",
@@ -131,6 +133,45 @@ class AdmittanceConfig:
     # Largest reference offset away from the wall (-x), m: bounds the integral's windup
     # when the sensor reads too high (e.g. saturated), so contact is regained quickly.
     max_retract: float = 0.1
+    # Fmax, an explicit upper bound on the contact force, N (.inf = none): a penalty on the
+    # force above it is added to the paper's cost (systems/optimal_admittance.py).
+    max_force: float = math.inf
+    # mu, the weight of that penalty: above Fmax the law's gains grow by (1 + mu).
+    force_bound_gain: float = 4.0
+
+
+CONTROLLER_KINDS = (
+    "optimal_admittance",
+    "pid_only",
+    "fixed_reference",
+    "classical_admittance",
+    "adaptive_impedance",
+)
+
+
+@dataclass
+class ControllerConfig:
+    # The force controller in front of the PID (all have the same ports): the paper's
+    # optimal_admittance, or a baseline: pid_only (the PID on Xd; also admittance.enabled:
+    # false), fixed_reference (eq. 6 from wall estimates), classical_admittance (mass-damper
+    # on the force error, as ROS 2's admittance_controller), adaptive_impedance (Jung, Hsia
+    # and Bonitz 2004).
+    kind: str = "optimal_admittance"
+    # fixed_reference: error of its wall-position estimate, m (+ = beyond the real wall).
+    wall_position_error: float = 0.001
+    # fixed_reference: relative error of its stiffness estimate (0.1 = 10 % too stiff).
+    stiffness_error: float = 0.0
+    # Baseline gains: "matched" derives them from the paper's law (same force-loop
+    # crossover Kp Gamma K, README "Comparison"); "manual" takes the values below.
+    tuning: str = "matched"
+    # classical_admittance and adaptive_impedance (manual tuning): virtual mass, kg,
+    mass: float = 0.16
+    # damping, N s/m,
+    damping: float = 40.0
+    # classical_admittance: virtual spring, N/m (0 = mass-damper),
+    stiffness: float = 0.0
+    # adaptive_impedance: eta / lambda, the rate of its adaptive term, 1/s.
+    adaptation_rate: float = 12.5
 
 
 @dataclass
@@ -187,6 +228,7 @@ class Scenario:
     wall: WallConfig = field(default_factory=WallConfig)
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
     admittance: AdmittanceConfig = field(default_factory=AdmittanceConfig)
+    controller: ControllerConfig = field(default_factory=ControllerConfig)
     pid: PidConfig = field(default_factory=PidConfig)
     sensor: SensorConfig = field(default_factory=SensorConfig)
     arm: ArmConfig = field(default_factory=ArmConfig)
@@ -196,6 +238,11 @@ class Scenario:
     faults: list[FaultConfig] = field(default_factory=list)
     # Name of the scenario (informational).
     name: str = "custom"
+
+    @property
+    def controller_kind(self) -> str:
+        """The force controller that runs: admittance.enabled = false means pid_only."""
+        return self.controller.kind if self.admittance.enabled else "pid_only"
 
     def urdf_path(self) -> Path:
         path = Path(self.arm.urdf)
@@ -326,6 +373,17 @@ def parse_value(text: str):
     if stripped.lower() in (".inf", "inf"):
         return math.inf
     return stripped
+
+
+def parse_overrides(overrides: typing.Sequence[str]) -> list[tuple[str, typing.Any]]:
+    """(key, value) pairs of "KEY=VALUE" strings (as given to --set), values parsed."""
+    pairs = []
+    for text in overrides:
+        key, sep, value = text.partition("=")
+        if not sep or not key.strip():
+            raise ScenarioError(f"--set {text!r}: expected KEY=VALUE")
+        pairs.append((key.strip(), parse_value(value)))
+    return pairs
 
 
 def _coerce_numbers(value):
@@ -460,6 +518,54 @@ def validate(scenario: Scenario) -> Scenario:
         "in (0, 0.5] m",
         a.max_retract,
     )
+    _require(
+        a.max_force > s.force_reference,
+        "admittance.max_force",
+        f"> force_reference ({s.force_reference:g} N), or .inf for no bound",
+        a.max_force,
+    )
+    _require(
+        finite(a.force_bound_gain) and 0 < a.force_bound_gain <= 100,
+        "admittance.force_bound_gain",
+        "in (0, 100]",
+        a.force_bound_gain,
+    )
+    k = s.controller
+    _require(
+        k.kind in CONTROLLER_KINDS,
+        "controller.kind",
+        "one of " + ", ".join(CONTROLLER_KINDS),
+        k.kind,
+    )
+    _require(
+        k.tuning in ("matched", "manual"), "controller.tuning", "'matched' or 'manual'", k.tuning
+    )
+    _require(
+        finite(k.wall_position_error) and abs(k.wall_position_error) <= 0.1,
+        "controller.wall_position_error",
+        "in [-0.1, 0.1] m",
+        k.wall_position_error,
+    )
+    _require(
+        finite(k.stiffness_error) and -0.9 <= k.stiffness_error <= 10,
+        "controller.stiffness_error",
+        "in [-0.9, 10] (relative)",
+        k.stiffness_error,
+    )
+    for name, maximum in (("mass", 1e3), ("damping", 1e6), ("adaptation_rate", 1e4)):
+        value = getattr(k, name)
+        _require(
+            finite(value) and 0 < value <= maximum,
+            f"controller.{name}",
+            f"in (0, {maximum:g}]",
+            value,
+        )
+    _require(
+        finite(k.stiffness) and 0 <= k.stiffness <= 1e6,
+        "controller.stiffness",
+        "in [0, 1e6] N/m",
+        k.stiffness,
+    )
     for i, fault in enumerate(s.faults):
         key = f"faults[{i}]"
         _require(
@@ -515,6 +621,13 @@ def validate(scenario: Scenario) -> Scenario:
             f"< {0.9 * full_scale:.4g} N with sensor.kind=flexiforce (90 % of the A201's "
             f"{full_scale:.4g} N full scale)",
             s.force_reference,
+        )
+        _require(
+            not finite(a.max_force) or a.max_force < full_scale,
+            "admittance.max_force",
+            f"< {full_scale:.4g} N with sensor.kind=flexiforce (a bound the A201 cannot read "
+            "cannot be enforced), or .inf",
+            a.max_force,
         )
     _require(
         finite(n.noise_std) and 0 <= n.noise_std <= 100,
@@ -627,13 +740,7 @@ def load_scenario(
     data = _coerce_numbers(data)
     items = overrides.items() if isinstance(overrides, typing.Mapping) else None
     if items is None:
-        parsed = []
-        for text in overrides:
-            key, sep, value = text.partition("=")
-            if not sep or not key.strip():
-                raise ScenarioError(f"--set {text!r}: expected KEY=VALUE")
-            parsed.append((key.strip(), parse_value(value)))
-        items = parsed
+        items = parse_overrides(overrides)
     valid = scenario_keys()
     for key, value in items:
         if key not in valid:

@@ -145,9 +145,21 @@ def compute_metrics(result: SimulationResult) -> dict:
         "derivative_evaluations": result.derivative_evaluations,
         "samples": int(time.size),
     }
+    tracking_error = np.abs(result.desired_position - result.pose)
+    metrics["max_y_tracking_error"] = float(np.nanmax(tracking_error[:, 1]))
+    metrics["max_theta_tracking_error"] = float(np.nanmax(tracking_error[:, 2]))
+    metrics["first_contact_transient_end"] = None
+    metrics["peak_force_after_first_contact_transient"] = None
     if first_contact is None:
         return metrics
 
+    # The first contact transient (an impact, or the pre-load of a plan behind the wall)
+    # ends when the force first enters the 5 % band around Fr; what follows is the
+    # controller's to bound.
+    reached = np.nonzero((time >= first_contact) & (error <= SETTLE_BAND * reference))[0]
+    if reached.size:
+        metrics["first_contact_transient_end"] = float(time[reached[0]])
+        metrics["peak_force_after_first_contact_transient"] = float(np.max(force[reached[0] :]))
     after = time >= first_contact
     metrics["rms_force_error"] = math.sqrt(_time_mean(time[after], error[after] ** 2))
     # Contact losses: transitions from contact to no contact after first contact.

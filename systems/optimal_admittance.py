@@ -14,6 +14,30 @@ reference recedes. Integrating once (paper-notes 3) removes the derivative of th
 
 Seen from the force error this is a proportional-integral law with proportional gain
 Gamma K alpha and integral gain Gamma K. The block never differentiates the measured force.
+
+Explicit force bound (the paper's future work, issue 6). With an upper bound Fmax > Fr the
+cost gets an exterior penalty on the force above a guard level Fg = (Fr + Fmax) / 2,
+
+    I_b = 1/2 |E + alpha dE/dt|^2 + mu/2 |G + alpha dG/dt|^2,   G = max(0, F - Fg),
+
+and, with dF/dXr = K as above, the gradient flow of I_b integrates once to the same PI law
+driven by the bounded error E_b = E - mu G:
+
+    Xr = Gamma K [ z + alpha (E_b - E(0)) ],   dz/dt = E_b.
+
+Below Fg nothing changes, so Fr is tracked as before. Above it the reference recedes with
+gains (1 + mu) times the paper's. A wall that pushes the force up steadily, so that Xr must
+recede at a speed v, settles where dz/dt = -v / (Gamma K):
+
+    F = Fg + (Fr - Fg + v / (Gamma K)) / (1 + mu)  <=  Fmax
+    for every  v <= Gamma K (Fmax - Fr) (1 + mu / 2)
+
+(0.18 m/s with paper_moving_wall's gains, Fmax = 2 Fr, mu = 4). The arm sets a tighter
+limit: the PID's D term acts on the velocity of Xd alone, so a wall that pushes the tip at v
+costs Kd v of force that no reference offset removes (Kd = 170 N s/m in paper_moving_wall:
+8.5 N at 50 mm/s), and the bound can hold only while Kd v < Fmax - Fr. What no law on the
+force can prevent: a stiffness jump at a fixed penetration (the force jumps before any
+reference can move), the impact of the first contact, and walls faster than that.
 """
 
 from __future__ import annotations
@@ -26,21 +50,9 @@ from pydrake.autodiffutils import AutoDiffXd
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
+from systems.force_axes import check_axes, per_axis, scatter
+
 __all__ = ["OptimalAdmittance", "OptimalAdmittance_"]
-
-
-def _positive_vector(
-    name: str, value: float | Sequence[float], size: int, *, allow_zero: bool
-) -> np.ndarray:
-    """Broadcasts `value` to `size` entries and checks its sign."""
-    array = np.broadcast_to(np.asarray(value, dtype=float), (size,)).copy()
-    if not np.all(np.isfinite(array)):
-        raise ValueError(f"{name} must be finite, got {array.tolist()}")
-    if allow_zero and np.any(array < 0):
-        raise ValueError(f"{name} must be >= 0, got {array.tolist()}")
-    if not allow_zero and np.any(array <= 0):
-        raise ValueError(f"{name} must be > 0, got {array.tolist()}")
-    return array
 
 
 @TemplateSystem.define("OptimalAdmittance_", T_list=[float, AutoDiffXd])
@@ -65,6 +77,9 @@ def OptimalAdmittance_(T):
         (clamped Xr - unclamped Xr) / (Gamma K tau_aw), tau_aw = max(10 ms, 5 period), pulls
         the integral back (anti-windup), so the block leaves the bound within a few tau_aw
         once the force error changes sign.
+
+        Force bound (``max_force`` finite): the law runs on E_b = E - mu max(0, F - Fg),
+        Fg = (Fr + Fmax) / 2 (module docstring), mu = ``force_bound_gain``.
 
         With ``period > 0`` the law is sampled as a digital controller would run it: at each
         sample k, Xr[k] = Gamma K (z[k] + alpha (E[k] - E0)) is latched (zero-order hold) and
@@ -91,6 +106,8 @@ def OptimalAdmittance_(T):
             period: float = 0.0,
             max_push: float | Sequence[float] = math.inf,
             max_retract: float | Sequence[float] = math.inf,
+            max_force: float | Sequence[float] = math.inf,
+            force_bound_gain: float = 4.0,
             converter=None,
         ) -> None:
             """
@@ -103,24 +120,21 @@ def OptimalAdmittance_(T):
                 period: 0 for the continuous law, otherwise the sampling period in s.
                 max_push: the largest Xr along +axis (into the wall), m (> 0; inf = none).
                 max_retract: the largest Xr along -axis (away from the wall), m (> 0).
+                max_force: Fmax, the upper bound on the measured force per axis, N (> 0;
+                    inf = no bound).
+                force_bound_gain: mu, the weight of the force-bound penalty in I_b (> 0).
             """
             LeafSystem_[T].__init__(self, converter=converter)
-            axes = [int(a) for a in force_axes]
-            if not axes:
-                raise ValueError("force_axes must name at least one axis")
-            if len(set(axes)) != len(axes) or min(axes) < 0 or max(axes) >= num_axes:
-                raise ValueError(
-                    f"force_axes must be distinct indices in [0, {num_axes - 1}], got {axes}"
-                )
+            axes = check_axes(force_axes, num_axes)
             if not (np.isfinite(period) and period >= 0):
                 raise ValueError(f"period must be >= 0 s (0 = continuous), got {period}")
             size = len(axes)
             self._axes = axes
             self._num_axes = int(num_axes)
             self._period = float(period)
-            self._gamma = _positive_vector("gamma", gamma, size, allow_zero=False)
-            self._alpha = _positive_vector("alpha", alpha, size, allow_zero=True)
-            self._stiffness = _positive_vector("stiffness", stiffness, size, allow_zero=False)
+            self._gamma = per_axis("gamma", gamma, size, allow_zero=False)
+            self._alpha = per_axis("alpha", alpha, size, allow_zero=True)
+            self._stiffness = per_axis("stiffness", stiffness, size, allow_zero=False)
             self._max_push = np.broadcast_to(np.asarray(max_push, dtype=float), (size,)).copy()
             self._max_retract = np.broadcast_to(
                 np.asarray(max_retract, dtype=float), (size,)
@@ -128,6 +142,12 @@ def OptimalAdmittance_(T):
             for name, bound in (("max_push", self._max_push), ("max_retract", self._max_retract)):
                 if np.any(np.isnan(bound)) or np.any(bound <= 0):
                     raise ValueError(f"{name} must be > 0 m, got {bound.tolist()}")
+            self._max_force = np.broadcast_to(np.asarray(max_force, dtype=float), (size,)).copy()
+            if np.any(np.isnan(self._max_force)) or np.any(self._max_force <= 0):
+                raise ValueError(f"max_force must be > 0 N, got {self._max_force.tolist()}")
+            if not (math.isfinite(force_bound_gain) and force_bound_gain > 0):
+                raise ValueError(f"force_bound_gain must be > 0, got {force_bound_gain}")
+            self._force_bound_gain = float(force_bound_gain)
             # Back-calculation anti-windup time constant, s: fast next to the force loop
             # (~0.1 s), slow enough to be a stable discrete update at the sampling period.
             self._windup_time_constant = max(0.01, 5.0 * self._period)
@@ -169,6 +189,8 @@ def OptimalAdmittance_(T):
                 period=other._period,
                 max_push=other._max_push,
                 max_retract=other._max_retract,
+                max_force=other._max_force,
+                force_bound_gain=other._force_bound_gain,
                 converter=converter,
             )
 
@@ -176,6 +198,11 @@ def OptimalAdmittance_(T):
         @property
         def force_axes(self) -> list[int]:
             return list(self._axes)
+
+        @property
+        def max_force(self) -> np.ndarray:
+            """Fmax per axis, N (inf: no bound)."""
+            return self._max_force.copy()
 
         @property
         def period(self) -> float:
@@ -217,8 +244,13 @@ def OptimalAdmittance_(T):
             offsets, rates = [], []
             for i in range(len(self._axes)):
                 force = measured[i]
-                if math.isfinite(force if T is float else force.value()):
+                force_value = force if T is float else force.value()
+                if math.isfinite(force_value):
                     error = desired[i] - force
+                    guard = 0.5 * (desired[i] + self._max_force[i])
+                    if force_value > (guard if T is float else guard.value()):
+                        # The force-bound penalty: E_b = E - mu (F - Fg).
+                        error = error - self._force_bound_gain * (force - guard)
                 else:
                     # No valid measurement: freeze the integral and take E = 0, i.e. hold
                     # Xr at its settled value (where E = 0) until the sensor recovers.
@@ -250,10 +282,7 @@ def OptimalAdmittance_(T):
             return offsets, rates
 
         def _scatter(self, values):
-            full = [T(0.0)] * self._num_axes
-            for axis, value in zip(self._axes, values, strict=True):
-                full[axis] = value
-            return np.array(full)
+            return scatter(T, self._axes, self._num_axes, values)
 
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
             if self._period > 0:  # the sampled law has no continuous state

@@ -133,3 +133,38 @@ def test_autodiff_gain_of_output_to_force():
 def test_bad_arguments_name_the_argument(kwargs, message):
     with pytest.raises(ValueError, match=message):
         _block(**kwargs)
+
+
+def test_force_bound_leaves_the_law_alone_below_the_guard_level():
+    """Fmax = 10 N, Fr = 5 N: the guard level is 7.5 N; at 7 N the law is the paper's."""
+    bounded, free = _block(max_force=10.0), _block()
+    contexts = [
+        _context(block, measured=7.0, desired=5.0, integral=0.3, initial_error=5.0)
+        for block in (bounded, free)
+    ]
+    np.testing.assert_allclose(
+        bounded.reference_offset_output.Eval(contexts[0]),
+        free.reference_offset_output.Eval(contexts[1]),
+    )
+    np.testing.assert_allclose(bounded.EvalTimeDerivatives(contexts[0]).CopyToVector(), [-2.0])
+
+
+def test_force_bound_penalises_the_force_above_the_guard_level():
+    """At F = 12 N: E_b = E - mu (F - Fg) = -7 - 4 (12 - 7.5) = -25 N, in both paths."""
+    block = _block(max_force=10.0, force_bound_gain=4.0)
+    context = _context(block, measured=12.0, desired=5.0, integral=0.3, initial_error=5.0)
+    np.testing.assert_allclose(block.EvalTimeDerivatives(context).CopyToVector(), [-25.0])
+    offset = block.reference_offset_output.Eval(context)[0]
+    assert offset == pytest.approx(GAMMA * K * (0.3 + ALPHA * (-25.0 - 5.0)), rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        (dict(max_force=0.0), "max_force must be > 0"),
+        (dict(force_bound_gain=-1.0), "force_bound_gain must be > 0"),
+    ],
+)
+def test_force_bound_arguments_are_checked(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        _block(**kwargs)
