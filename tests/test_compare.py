@@ -58,3 +58,18 @@ def test_compare_rejects_an_unknown_controller(tmp_path, capsys):
     assert code == 2
     assert "--controllers: 'pd' is not a controller" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_failed_run_is_a_row_with_its_reason():
+    from diagrams.compare import ControllerRun, _row, format_table
+
+    failed = {"failed": True, "failure": "the integrator failed at t = 1.2 s: step too small"}
+    ok = {"peak_force": 5.2, "final_mean_force": 5.01, "events": []}
+    runs = [
+        ControllerRun("classical_admittance", _row("classical_admittance", failed, 5.0)),
+        ControllerRun("optimal_admittance", _row("optimal_admittance", ok, 5.0)),
+    ]
+    assert runs[0].row["verdict"] == "failed"
+    assert runs[1].row["verdict"] == "tracks Fr"
+    text = format_table(runs)
+    assert "classical_admittance: the integrator failed at t = 1.2 s" in text
