@@ -32,10 +32,9 @@ import numpy as np
 
 from diagrams.output import atomic_output_dir, json_safe
 from diagrams.scenario import CONTROLLER_KINDS, Scenario, load_scenario, scenario_to_yaml
+from diagrams.simulation import SETTLE_BAND
 
 __all__ = ["ControllerRun", "compare_controllers", "format_table", "write_comparison"]
-
-SETTLE_BAND = 0.05
 
 
 @dataclass
