@@ -20,7 +20,7 @@ import os
 import sys
 from pathlib import Path
 
-from diagrams.output import OutputExistsError, check_output_dir
+from diagrams.output import OutputExistsError, atomic_write_text, check_output_dir
 from diagrams.scenario import ScenarioError, builtin_scenario_names, load_scenario
 
 DEFAULT_SCENARIO = "paper_stiffness_step"
@@ -103,9 +103,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     if args.json:
         path = Path(args.json)
         path.parent.mkdir(parents=True, exist_ok=True)
-        staging = path.with_name(f".{path.name}.incomplete")
-        staging.write_text(json.dumps(report, indent=2) + "\n")
-        staging.replace(path)
+        atomic_write_text(path, json.dumps(report, indent=2) + "\n")
         print(f"wrote {path}")
     return 0
 
@@ -126,7 +124,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_compare"
     check_output_dir(out, overwrite=args.force)
     scenario, runs = compare_controllers(
-        args.scenario, args.overrides, kinds or list(CONTROLLER_KINDS), workers=args.workers
+        args.scenario, args.overrides, kinds or CONTROLLER_KINDS, workers=args.workers
     )
     gains = ", ".join(f"{k} {v:.3g}" for k, v in baseline_gains(scenario).items())
     print(f"{scenario.name}: Fr = {scenario.force_reference:g} N; baseline gains ({gains})")

@@ -13,7 +13,8 @@ on the local cores. The result folder (written atomically) holds:
 A controller whose run fails (diverges, or the integrator gives up) gets a row marked failed
 with the reason; the others are still compared.
 
-Verdicts, on the force over the last second (the 5 % band of the settling metrics):
+Verdicts, on the mean force over the last second (``final_mean_force`` of the metrics; the
+5 % band of the settling metrics):
 ``tracks Fr`` within 5 % of Fr; ``excessive force`` above it; ``too little force`` below it
 (contact lost or never pressed); ``failed`` for a run that did not finish.
 """
@@ -32,7 +33,7 @@ import numpy as np
 
 from diagrams.output import atomic_output_dir, json_safe
 from diagrams.scenario import CONTROLLER_KINDS, Scenario, load_scenario, scenario_to_yaml
-from diagrams.simulation import SETTLE_BAND
+from diagrams.simulation import SETTLE_BAND, settling_columns
 
 __all__ = ["ControllerRun", "compare_controllers", "format_table", "write_comparison"]
 
@@ -75,12 +76,7 @@ def _row(kind: str, metrics: dict, force_reference: float) -> dict:
         "max_etheta_mrad": _scaled(metrics.get("max_theta_tracking_error"), 1e3),
         "contact_losses": metrics.get("contact_losses"),
     }
-    seen: dict[str, int] = {}
-    for event in metrics.get("events", []):
-        # Settling time after each event, s; the n-th event of a kind gets a suffix _n.
-        count = seen[event["kind"]] = seen.get(event["kind"], 0) + 1
-        suffix = f"_{count}" if count > 1 else ""
-        row[f"settle_{event['kind']}{suffix}"] = event["settling_time"]
+    row.update(settling_columns(metrics))  # s, after each event
     row["verdict"] = _verdict(metrics, force_reference)
     row["failure"] = metrics.get("failure", "")
     return row
@@ -102,13 +98,10 @@ def _run_one(source, overrides: list[str], kind: str) -> ControllerRun:
     except RuntimeError as error:  # a failure inside Drake that is not a divergence
         metrics = {"failed": True, "failure": str(error).splitlines()[0]}
         return ControllerRun(kind, _row(kind, metrics, scenario.force_reference), metrics)
-    metrics = dict(result.metrics)
-    last = result.time >= result.time[-1] - 1.0
-    metrics["final_mean_force"] = float(np.mean(result.force[last])) if last.any() else None
     return ControllerRun(
         kind,
-        _row(kind, metrics, scenario.force_reference),
-        metrics,
+        _row(kind, result.metrics, scenario.force_reference),
+        result.metrics,
         result.time,
         result.force,
         result.reference_offset[:, 0],

@@ -68,9 +68,10 @@ def AddForceController(builder: DiagramBuilder, scenario: Scenario):
         the system, or None for pid_only (the PID then runs on Xd alone).
     """
     kind = scenario.controller_kind
-    axes = [WALL_NORMAL_AXIS]
     if kind == "pid_only":
         return None
+    axes = [WALL_NORMAL_AXIS]
+    gains = baseline_gains(scenario)
     if kind == "optimal_admittance":
         admittance = scenario.admittance
         system = OptimalAdmittance(
@@ -95,7 +96,6 @@ def AddForceController(builder: DiagramBuilder, scenario: Scenario):
             num_axes=3,
         )
     elif kind == "classical_admittance":
-        gains = baseline_gains(scenario)
         system = ClassicalAdmittance(
             mass=gains["mass"],
             damping=gains["damping"],
@@ -104,7 +104,6 @@ def AddForceController(builder: DiagramBuilder, scenario: Scenario):
             num_axes=3,
         )
     elif kind == "adaptive_impedance":
-        gains = baseline_gains(scenario)
         system = AdaptiveImpedance(
             mass=gains["mass"],
             damping=gains["damping"],

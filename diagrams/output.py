@@ -14,13 +14,21 @@ import math
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+import uuid
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["OutputExistsError", "atomic_output_dir", "check_output_dir", "json_safe"]
+__all__ = [
+    "OutputExistsError",
+    "atomic_output_dir",
+    "atomic_write",
+    "atomic_write_text",
+    "check_output_dir",
+    "json_safe",
+]
 
 INCOMPLETE_MARK = "INCOMPLETE"
 
@@ -108,3 +116,26 @@ def json_safe(value):
     if isinstance(value, np.generic):
         return json_safe(value.item())
     return value
+
+
+def atomic_write(path: Path, write: Callable[[Path], None]) -> None:
+    """Writes one file atomically: write(temporary path next to it), fsync, os.replace.
+
+    The temporary file is ``.<name>.<pid>.<random>.tmp`` in the same folder; on any error
+    it is removed and `path` is left as it was.
+    """
+    # Not mkstemp: its files are private (0600); these get the umask's usual permissions.
+    temporary = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
+    try:
+        write(temporary)
+        with open(temporary, "rb") as file:
+            os.fsync(file.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        temporary.unlink(missing_ok=True)
+        raise
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """`path` holds `text` afterwards, or is left as it was."""
+    atomic_write(path, lambda temporary: temporary.write_text(text))

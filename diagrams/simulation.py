@@ -14,7 +14,13 @@ from diagrams.closed_loop import BuildClosedLoop, ClosedLoop, SetInitialConditio
 from diagrams.scenario import Scenario
 from systems.planar_kinematics import PlanarFrameKinematics
 
-__all__ = ["SimulationDivergedError", "SimulationResult", "compute_metrics", "run_scenario"]
+__all__ = [
+    "SimulationDivergedError",
+    "SimulationResult",
+    "compute_metrics",
+    "run_scenario",
+    "settling_columns",
+]
 
 # Window over which "steady state" and "before an event" errors are averaged, s.
 STEADY_WINDOW = 1.0
@@ -127,12 +133,12 @@ def compute_metrics(result: SimulationResult) -> dict:
     contact_indices = np.nonzero(in_contact)[0]
     first_contact = float(time[contact_indices[0]]) if contact_indices.size else None
 
+    last = _window(time, duration - STEADY_WINDOW, duration)
     metrics: dict = {
         "peak_force": float(np.max(force)),
-        "steady_state_force_error": _time_mean(
-            time[_window(time, duration - STEADY_WINDOW, duration)],
-            error[_window(time, duration - STEADY_WINDOW, duration)],
-        ),
+        "steady_state_force_error": _time_mean(time[last], error[last]),
+        # Signed: above or below Fr at the end (steady_state_force_error is its magnitude).
+        "final_mean_force": _time_mean(time[last], force[last]),
         "rms_force_error": None,
         "first_contact_time": first_contact,
         "contact_losses": 0,
@@ -239,6 +245,21 @@ def compute_metrics(result: SimulationResult) -> dict:
             metrics["force_min_while_wall_moves"] = float(np.min(force[moving]))
             metrics["force_max_while_wall_moves"] = float(np.max(force[moving]))
     return metrics
+
+
+def settling_columns(metrics: dict) -> dict[str, float | None]:
+    """The settling time after each event of `metrics` as flat columns.
+
+    ``settling_<kind>_<i>`` (s; None = not settled before the next event), ``i`` counting
+    the events of that kind from 0: the names of the sweep's and the comparison's tables.
+    """
+    columns: dict[str, float | None] = {}
+    counts: dict[str, int] = {}
+    for event in metrics.get("events", []):
+        kind = event["kind"]
+        columns[f"settling_{kind}_{counts.get(kind, 0)}"] = event["settling_time"]
+        counts[kind] = counts.get(kind, 0) + 1
+    return columns
 
 
 def _log_data(loop: ClosedLoop, root_context, name: str):

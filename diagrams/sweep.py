@@ -100,13 +100,12 @@ import threading
 import time
 import typing
 import uuid
-from collections import Counter
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
-from diagrams.output import json_safe
+from diagrams.output import atomic_write, atomic_write_text, json_safe
 from diagrams.scenario import (
     SCENARIO_DIR,
     ScenarioError,
@@ -115,6 +114,7 @@ from diagrams.scenario import (
     parse_overrides,
     parse_value,
 )
+from diagrams.simulation import settling_columns
 
 __all__ = [
     "GRID_FORMS",
@@ -560,11 +560,7 @@ def point_metrics(metrics: Mapping, force_reference: float) -> dict:
         scalar = value is None or (isinstance(value, int | float) and not isinstance(value, bool))
         if scalar and name not in row and name not in _UNTABLED_METRICS:
             row[name] = value
-    counts: Counter = Counter()
-    for event in metrics.get("events", []):
-        kind = event["kind"]
-        row[f"settling_{kind}_{counts[kind]}"] = event["settling_time"]
-        counts[kind] += 1
+    row.update(settling_columns(metrics))
     row["wall_time"] = metrics.get("wall_time")
     return row
 
@@ -642,27 +638,9 @@ def read_points(path: str | Path) -> tuple[dict[str, dict], int]:
     return rows, bad
 
 
-def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
-    """Calls write(temporary path in the same folder), fsyncs it, then os.replace."""
-    # Not mkstemp: its files are private (0600); these get the umask's usual permissions.
-    temporary = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
-    try:
-        write(temporary)
-        with open(temporary, "rb") as file:
-            os.fsync(file.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        temporary.unlink(missing_ok=True)
-        raise
-
-
-def _atomic_text(path: Path, text: str) -> None:
-    _atomic_write(path, lambda temporary: temporary.write_text(text))
-
-
 def _rewrite_points(path: Path, rows: Iterable[dict]) -> None:
     lines = "".join(_line(row) for row in rows)
-    _atomic_text(path, lines)
+    atomic_write_text(path, lines)
 
 
 def _line(row: Mapping) -> str:
@@ -741,7 +719,7 @@ def _prepare_folder(definition: SweepDefinition, out_dir: Path, force: bool) -> 
         "log_keys": sorted(definition.log_keys),
         "command": "admittance sweep " + definition.describe(),
     }
-    _atomic_text(definition_path, json.dumps(document, indent=2) + "\n")
+    atomic_write_text(definition_path, json.dumps(document, indent=2) + "\n")
 
 
 # --- engines ------------------------------------------------------------------------------
@@ -1169,7 +1147,7 @@ def plot_summary(definition: SweepDefinition, rows: Sequence[Mapping], out_dir: 
         figure.suptitle(f"sweep of {definition.scenario_name}: metrics against {key}")
         figure.tight_layout()
         path = out_dir / _plot_name(key)
-        _atomic_write(path, lambda temporary, f=figure: f.savefig(temporary, format="png", dpi=100))
+        atomic_write(path, lambda temporary, f=figure: f.savefig(temporary, format="png", dpi=100))
         written.append(path)
     return written
 
@@ -1304,8 +1282,8 @@ def run_sweep(
         ours = [rows[point.point_id] for point in definition.points if point.point_id in rows]
         summary = summarize(definition, ours)
         table = out_dir / TABLE_FILE
-        _atomic_text(table, table_text(definition.keys, ours))
-        _atomic_text(out_dir / SUMMARY_FILE, summary)
+        atomic_write_text(table, table_text(definition.keys, ours))
+        atomic_write_text(out_dir / SUMMARY_FILE, summary)
         plots = plot_summary(definition, ours, out_dir) if ours else []
     return SweepOutcome(
         out_dir=out_dir,

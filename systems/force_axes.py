@@ -52,11 +52,15 @@ def force_error(T, desired, measured) -> list:
 
     A broken sensor (NaN) must not reach the law: E = 0 holds the controller where it is.
     """
-    errors = []
-    for want, got in zip(desired, measured, strict=True):
-        value = got if T is float else got.value()
-        errors.append(want - got if math.isfinite(value) else T(0.0))
-    return errors
+    if T is float:  # the simulation's hot path: plain Python floats, one comprehension
+        return [
+            want - got if math.isfinite(got) else 0.0
+            for want, got in zip(desired.tolist(), measured.tolist(), strict=True)
+        ]
+    return [
+        want - got if math.isfinite(got.value()) else T(0.0)
+        for want, got in zip(desired, measured, strict=True)
+    ]
 
 
 def scatter(T, axes: Sequence[int], num_axes: int, values) -> np.ndarray:

@@ -50,7 +50,7 @@ from pydrake.autodiffutils import AutoDiffXd
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from systems.force_axes import check_axes, per_axis, scatter
+from systems.force_axes import check_axes, force_error, per_axis, scatter
 
 __all__ = ["OptimalAdmittance", "OptimalAdmittance_"]
 
@@ -148,6 +148,7 @@ def OptimalAdmittance_(T):
             if not (math.isfinite(force_bound_gain) and force_bound_gain > 0):
                 raise ValueError(f"force_bound_gain must be > 0, got {force_bound_gain}")
             self._force_bound_gain = float(force_bound_gain)
+            self._bounded = np.isfinite(self._max_force)
             # Back-calculation anti-windup time constant, s: fast next to the force loop
             # (~0.1 s), slow enough to be a stable discrete update at the sampling period.
             self._windup_time_constant = max(0.01, 5.0 * self._period)
@@ -200,11 +201,6 @@ def OptimalAdmittance_(T):
             return list(self._axes)
 
         @property
-        def max_force(self) -> np.ndarray:
-            """Fmax per axis, N (inf: no bound)."""
-            return self._max_force.copy()
-
-        @property
         def period(self) -> float:
             return self._period
 
@@ -241,20 +237,21 @@ def OptimalAdmittance_(T):
             desired = self.desired_force_input.Eval(context)
             measured = self.measured_force_input.Eval(context)
             initial_error = context.get_numeric_parameter(self._initial_error_index).CopyToVector()
+            # A reading that is not finite (a broken sensor) gives E = 0: the integral
+            # freezes and Xr holds its settled value until the sensor recovers.
+            errors = force_error(T, desired, measured)
             offsets, rates = [], []
             for i in range(len(self._axes)):
-                force = measured[i]
-                force_value = force if T is float else force.value()
-                if math.isfinite(force_value):
-                    error = desired[i] - force
+                error = errors[i]
+                if self._bounded[i]:
+                    force = measured[i]
                     guard = 0.5 * (desired[i] + self._max_force[i])
-                    if force_value > (guard if T is float else guard.value()):
+                    # (NaN compares False: a broken reading adds no penalty.)
+                    if (force if T is float else force.value()) > (
+                        guard if T is float else guard.value()
+                    ):
                         # The force-bound penalty: E_b = E - mu (F - Fg).
                         error = error - self._force_bound_gain * (force - guard)
-                else:
-                    # No valid measurement: freeze the integral and take E = 0, i.e. hold
-                    # Xr at its settled value (where E = 0) until the sensor recovers.
-                    error = T(0.0)
                 offset = self._integral_gain[i] * (
                     integral[i] + self._alpha[i] * (error - initial_error[i])
                 )
@@ -281,9 +278,6 @@ def OptimalAdmittance_(T):
                 rates.append(rate)
             return offsets, rates
 
-        def _scatter(self, values):
-            return scatter(T, self._axes, self._num_axes, values)
-
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
             if self._period > 0:  # the sampled law has no continuous state
                 return
@@ -294,7 +288,7 @@ def OptimalAdmittance_(T):
         def _CalcContinuousOutput(self, context, output) -> None:
             integral = context.get_continuous_state_vector().CopyToVector()
             offsets, _ = self._law(context, integral)
-            output.SetFromVector(self._scatter(offsets))
+            output.SetFromVector(scatter(T, self._axes, self._num_axes, offsets))
 
         def _DiscreteUpdate(self, context, discrete_state) -> None:
             size = len(self._axes)
@@ -308,7 +302,7 @@ def OptimalAdmittance_(T):
         def _CalcSampledOutput(self, context, output) -> None:
             size = len(self._axes)
             state = context.get_discrete_state(self._state_index).CopyToVector()
-            output.SetFromVector(self._scatter(state[size:]))
+            output.SetFromVector(scatter(T, self._axes, self._num_axes, state[size:]))
 
     return Impl
 

@@ -4,6 +4,7 @@ ports, the matched tuning rule, and the scenario keys that choose them."""
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -129,7 +130,7 @@ def test_matched_tuning_gives_the_paper_s_crossover():
     ],
 )
 def test_controller_keys_are_validated(override, message):
-    with pytest.raises(ScenarioError, match=message.replace("(", r"\(").replace(")", r"\)")):
+    with pytest.raises(ScenarioError, match=re.escape(message)):
         load_scenario("paper_moving_wall", [override])
 
 
