@@ -110,27 +110,31 @@ def CartesianPid_(T):
                 limit = actuator.effort_limit()
                 limits.append(limit if np.isfinite(limit) and limit > 0 else np.inf)
             self._actuation_from_generalized = selection
+            self._actuators_in_joint_order = bool(np.array_equal(selection, np.eye(num_actuators)))
             self._effort_limits = np.array(limits)
+            self._effort_limits_list = self._effort_limits.tolist()
 
             self.commanded_position_input = self.DeclareVectorInputPort("commanded_position", 3)
             self.commanded_velocity_input = self.DeclareVectorInputPort("commanded_velocity", 3)
             self.estimated_state_input = self.DeclareVectorInputPort(
                 "estimated_state", num_positions + num_velocities
             )
-            # ec, dec/dt and J are needed by both the output and the state update: compute
-            # them once per context (the kinematics are the costly part of this system).
-            self._tracking_cache = self.DeclareCacheEntry(
-                description="cartesian error, its rate and the Jacobian",
-                value_producer=ValueProducer(
-                    allocate=Value[object]().Clone, calc=self._CalcTracking
-                ),
+            # The whole law (kinematics, torque and dz/dt) is computed once per context and
+            # read by both the output and the state update: one Python evaluation of the
+            # kinematics per derivative evaluation of the closed loop.
+            self._law_cache = self.DeclareCacheEntry(
+                description="actuation and integral rate",
+                value_producer=ValueProducer(allocate=Value[object]().Clone, calc=self._CalcLaw),
                 prerequisites_of_calc={
-                    self.input_port_ticket(port.get_index())
-                    for port in (
-                        self.commanded_position_input,
-                        self.commanded_velocity_input,
-                        self.estimated_state_input,
-                    )
+                    self.all_state_ticket(),
+                    *(
+                        self.input_port_ticket(port.get_index())
+                        for port in (
+                            self.commanded_position_input,
+                            self.commanded_velocity_input,
+                            self.estimated_state_input,
+                        )
+                    ),
                 },
             )
             if self._period == 0.0:
@@ -187,6 +191,10 @@ def CartesianPid_(T):
                 value[:3] = integral
                 state.SetFromVector(value)
 
+        def cartesian_error(self, context) -> np.ndarray:
+            """ec = Xc - h(q) (angle wrapped) at the context's inputs."""
+            return self._law_cache.Eval(context)[2].copy()
+
         def holding_integral(self, state, generalized_force) -> np.ndarray:
             """The integral at which, with zero error, the PID applies `generalized_force`.
 
@@ -200,41 +208,66 @@ def CartesianPid_(T):
             return wrench / self._ki
 
         # --- the law ----------------------------------------------------------------------
-        def _CalcTracking(self, context, value) -> None:
+        def _CalcLaw(self, context, value) -> None:
+            """Caches (tau, dz/dt, ec) for the context's state and inputs."""
             kinematics = self._kinematics
             state = self.estimated_state_input.Eval(context)
             kinematics.set_state(state)
             pose = kinematics.pose()
             jacobian = kinematics.jacobian()
-            velocity = jacobian @ state[kinematics.num_positions :]
             error = self.commanded_position_input.Eval(context) - pose
             error[2] = wrap_angle(error[2])
-            error_rate = self.commanded_velocity_input.Eval(context) - velocity
-            value.set_value((error, error_rate, jacobian))
-
-        def _error_and_jacobian(self, context):
-            """(ec, dec/dt, J), cached per context."""
-            return self._tracking_cache.Eval(context)
-
-        def _unclipped(self, integral, error, error_rate, jacobian):
+            error_rate = (
+                self.commanded_velocity_input.Eval(context)
+                - jacobian @ state[kinematics.num_positions :]
+            )
+            if self._period == 0.0:
+                integral = context.get_continuous_state_vector().CopyToVector()
+            else:
+                integral = context.get_discrete_state(self._state_index).CopyToVector()[:3]
             wrench = self._kp * error + self._kd * error_rate + self._ki * integral
-            return self._actuation_from_generalized @ (jacobian.T @ wrench)
+            torque = jacobian.T @ wrench
+            if not self._actuators_in_joint_order:
+                torque = self._actuation_from_generalized @ torque
+            if T is float:
+                saturated = any(
+                    abs(t) > limit
+                    for t, limit in zip(torque.tolist(), self._effort_limits_list, strict=True)
+                )
+            else:
+                saturated = any(
+                    abs(t.value()) > limit
+                    for t, limit in zip(torque, self._effort_limits_list, strict=True)
+                )
+            if not saturated:
+                value.set_value((torque, error, error))
+                return
+            clipped = self._clip(torque)
+            rate = self._integral_rate(error, clipped - torque, jacobian)
+            value.set_value((clipped, rate, error))
 
-        def _integral_rate(self, integral, error, error_rate, jacobian):
+        def _clip(self, torque):
+            """tau clipped to the effort limits."""
+            if T is float:
+                return np.clip(torque, -self._effort_limits, self._effort_limits)
+            return np.array(
+                [
+                    scalar_max(T(-limit), scalar_min(T(limit), value))
+                    for value, limit in zip(torque, self._effort_limits, strict=True)
+                ]
+            )
+
+        def _integral_rate(self, error, excess, jacobian):
             """dz/dt = ec + back-calculation while an actuator saturates (anti-windup).
 
-            With dtau = clip(tau) - tau (zero unless saturated) mapped back to a Cartesian
-            wrench dF = J^-T dtau, dz_i/dt = ec_i + dF_i / (Ki_i Tt_i): the integral is
-            pulled back until the torque it asks for is what the actuators give. (A hard
-            freeze switches the right-hand side on the limit and stalls an error-controlled
-            integrator.) The wrench is recovered with the Jacobian's value only: the term is
-            zero, with zero derivative, wherever the loop is linearized unsaturated.
+            With dtau = clip(tau) - tau (`excess`, zero unless saturated) mapped back to a
+            Cartesian wrench dF = J^-T dtau, dz_i/dt = ec_i + dF_i / (Ki_i Tt_i): the
+            integral is pulled back until the torque it asks for is what the actuators give.
+            (A hard freeze switches the right-hand side on the limit and stalls an
+            error-controlled integrator.) The wrench is recovered with the Jacobian's value
+            only: the term is zero, with zero derivative, wherever the loop is linearized
+            unsaturated.
             """
-            torque = self._unclipped(integral, error, error_rate, jacobian)
-            values = torque if T is float else np.array([t.value() for t in torque])
-            if not np.any(np.abs(values) > self._effort_limits):
-                return error
-            excess = self._actuation(integral, error, error_rate, jacobian) - torque
             jacobian_value = np.array(
                 [[j if T is float else j.value() for j in row] for row in jacobian]
             )
@@ -246,37 +279,17 @@ def CartesianPid_(T):
                     rate[i] = error[i] + wrench_excess[i] / (self._ki[i] * self._tracking_time[i])
             return rate
 
-        def _actuation(self, integral, error, error_rate, jacobian):
-            torque = self._unclipped(integral, error, error_rate, jacobian)
-            if T is float:
-                return np.clip(torque, -self._effort_limits, self._effort_limits)
-            return np.array(
-                [
-                    scalar_max(T(-limit), scalar_min(T(limit), value))
-                    for value, limit in zip(torque, self._effort_limits, strict=True)
-                ]
-            )
-
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
             if self._period > 0:  # the sampled controller has no continuous state
                 return
-            error, error_rate, jacobian = self._error_and_jacobian(context)
-            integral = context.get_continuous_state_vector().CopyToVector()
-            derivatives.get_mutable_vector().SetFromVector(
-                self._integral_rate(integral, error, error_rate, jacobian)
-            )
+            derivatives.get_mutable_vector().SetFromVector(self._law_cache.Eval(context)[1])
 
         def _CalcContinuousActuation(self, context, output) -> None:
-            error, error_rate, jacobian = self._error_and_jacobian(context)
-            integral = context.get_continuous_state_vector().CopyToVector()
-            output.SetFromVector(self._actuation(integral, error, error_rate, jacobian))
+            output.SetFromVector(self._law_cache.Eval(context)[0])
 
         def _DiscreteUpdate(self, context, discrete_state) -> None:
-            state = context.get_discrete_state(self._state_index).CopyToVector()
-            integral = state[:3]
-            error, error_rate, jacobian = self._error_and_jacobian(context)
-            torque = self._actuation(integral, error, error_rate, jacobian)
-            rate = self._integral_rate(integral, error, error_rate, jacobian)
+            integral = context.get_discrete_state(self._state_index).CopyToVector()[:3]
+            torque, rate, _ = self._law_cache.Eval(context)
             discrete_state.get_mutable_vector(self._state_index).SetFromVector(
                 np.concatenate([integral + self._period * rate, torque])
             )

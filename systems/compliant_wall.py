@@ -112,6 +112,9 @@ def CompliantWall_(T):
             self._frame = frame
             self._world = plant.world_frame()
             self._origin = np.zeros(3)
+            self._applied = ExternallyAppliedSpatialForce_[T]()
+            self._applied.body_index = self._body_index
+            self._applied.p_BoBq_B = self._p_BoFo_B
 
             num_states = plant.num_positions() + plant.num_velocities()
             self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", num_states)
@@ -168,8 +171,8 @@ def CompliantWall_(T):
         def _force(self, context):
             """The compressive contact force F >= 0 (N) at the context's time and state."""
             state = self.estimated_state_input.Eval(context)
-            values = state if T is float else [x.value() for x in state]
-            if not np.all(np.isfinite(values)):
+            values = state.tolist() if T is float else [x.value() for x in state]
+            if not all(map(math.isfinite, values)):
                 # Say so here, rather than let the plant abort on a non-finite state.
                 raise RuntimeError(
                     f"CompliantWall: the arm's state is not finite at t = {context.get_time()} s"
@@ -191,9 +194,8 @@ def CompliantWall_(T):
 
         def _CalcSpatialForce(self, context, output) -> None:
             force = self.contact_force_output.Eval(context)[0]
-            applied = ExternallyAppliedSpatialForce_[T]()
-            applied.body_index = self._body_index
-            applied.p_BoBq_B = self._p_BoFo_B
+            # The output keeps a copy: one applied force is reused.
+            applied = self._applied
             zero = T(0.0)
             applied.F_Bq_W = SpatialForce_[T](
                 tau=np.array([zero, zero, zero]), f=np.array([-force, zero, zero])

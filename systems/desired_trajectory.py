@@ -83,11 +83,13 @@ def DesiredTrajectory_(T):
 
         def _CalcPosition(self, context, output) -> None:
             phase = self._omega * context.get_time()
-            output.SetFromVector(self._center + self._amplitude * np.sin(phase))
+            sine = math.sin(phase) if T is float else np.sin(phase)
+            output.SetFromVector(self._center + self._amplitude * sine)
 
         def _CalcVelocity(self, context, output) -> None:
             phase = self._omega * context.get_time()
-            output.SetFromVector(self._amplitude * self._omega * np.cos(phase))
+            cosine = math.cos(phase) if T is float else np.cos(phase)
+            output.SetFromVector(self._amplitude * self._omega * cosine)
 
     return Impl
 

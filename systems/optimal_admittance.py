@@ -47,7 +47,8 @@ from collections.abc import Sequence
 
 import numpy as np
 from pydrake.autodiffutils import AutoDiffXd
-from pydrake.systems.framework import BasicVector_, LeafSystem_
+from pydrake.common.value import Value
+from pydrake.systems.framework import BasicVector_, LeafSystem_, ValueProducer
 from pydrake.systems.scalar_conversion import TemplateSystem
 
 from systems.force_axes import check_axes, force_error, per_axis, scatter
@@ -163,6 +164,20 @@ def OptimalAdmittance_(T):
             )
             if self._period == 0.0:
                 self.DeclareContinuousState(size)
+                # Xr and dz/dt come from one evaluation of the law per context, read by
+                # both the output and the derivatives.
+                self._law_cache = self.DeclareCacheEntry(
+                    description="reference offset and integral rate",
+                    value_producer=ValueProducer(
+                        allocate=Value[object]().Clone, calc=self._CalcContinuousLaw
+                    ),
+                    prerequisites_of_calc={
+                        self.xc_ticket(),
+                        self.all_parameters_ticket(),
+                        self.measured_force_input.ticket(),
+                        self.desired_force_input.ticket(),
+                    },
+                )
                 self.reference_offset_output = self.DeclareVectorOutputPort(
                     "reference_offset", self._num_axes, self._CalcContinuousOutput
                 )
@@ -278,17 +293,18 @@ def OptimalAdmittance_(T):
                 rates.append(rate)
             return offsets, rates
 
+        def _CalcContinuousLaw(self, context, value) -> None:
+            integral = context.get_continuous_state_vector().CopyToVector()
+            offsets, rates = self._law(context, integral)
+            value.set_value((scatter(T, self._axes, self._num_axes, offsets), rates))
+
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
             if self._period > 0:  # the sampled law has no continuous state
                 return
-            integral = context.get_continuous_state_vector().CopyToVector()
-            _, rates = self._law(context, integral)
-            derivatives.get_mutable_vector().SetFromVector(rates)
+            derivatives.get_mutable_vector().SetFromVector(self._law_cache.Eval(context)[1])
 
         def _CalcContinuousOutput(self, context, output) -> None:
-            integral = context.get_continuous_state_vector().CopyToVector()
-            offsets, _ = self._law(context, integral)
-            output.SetFromVector(scatter(T, self._axes, self._num_axes, offsets))
+            output.SetFromVector(self._law_cache.Eval(context)[0])
 
         def _DiscreteUpdate(self, context, discrete_state) -> None:
             size = len(self._axes)

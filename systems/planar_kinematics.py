@@ -51,14 +51,14 @@ class PlanarFrameKinematics:
     def pose(self):
         """X = (x, y, theta) at the last state set."""
         X_WF = self.plant.CalcRelativeTransform(self._context, self._world, self.frame)
-        rotation = X_WF.rotation().matrix()
-        position = X_WF.translation()
+        matrix = X_WF.GetAsMatrix34()  # [R | p], one copy out of the plant
+        cos_theta, sin_theta = matrix[0, 0], matrix[1, 0]
         theta = (
-            math.atan2(rotation[1, 0], rotation[0, 0])
-            if isinstance(rotation[0, 0], float)
-            else atan2(rotation[1, 0], rotation[0, 0])
+            math.atan2(sin_theta, cos_theta)
+            if isinstance(cos_theta, float)
+            else atan2(sin_theta, cos_theta)
         )
-        return np.array([position[0], position[1], theta])
+        return np.array([matrix[0, 3], matrix[1, 3], theta])
 
     def jacobian(self):
         """J (3 x nv): rows d(x, y, theta)/dt per unit generalized velocity."""

@@ -66,6 +66,17 @@ def test_python_callbacks_are_counted(report):
     assert derivatives["calls"] == loop["derivative_evaluations"]
 
 
+def test_each_law_runs_once_per_evaluation(report):
+    # The PID's kinematics and torque, and the admittance law, are cached per context and
+    # read by both the output and the derivatives: one run per derivative evaluation, plus
+    # the few contexts that only the loggers and monitor see (about 5 %). Without the
+    # cache they would run twice.
+    calls = {entry["name"]: entry["calls"] for entry in report["python"]["callbacks"]}
+    evaluations = report["closed_loop"]["derivative_evaluations"]
+    for law in ("cartesian_pid._CalcLaw", "optimal_admittance._CalcContinuousLaw"):
+        assert evaluations <= calls[law] <= 1.2 * evaluations, law
+
+
 def test_floor_stays_put_and_is_cheaper(report):
     floor = report["floor"]
     assert floor["wall_time"]["median"] > 0

@@ -26,7 +26,7 @@ def test_equilibrium_is_force_tracking_and_stable():
     assert np.max(eigenvalues.real) < -0.05  # the slowest mode: the PID integral, Ki/Kp
     # The Cartesian error is zero: the PID's integral carries the wrench.
     pid_context = loop.pid.GetMyContextFromRoot(context)
-    error, _, _ = loop.pid._error_and_jacobian(pid_context)
+    error = loop.pid.cartesian_error(pid_context)
     np.testing.assert_allclose(error, 0.0, atol=1e-9)
 
 

@@ -85,12 +85,14 @@ def test_a_killed_simulation_writes_nothing(tmp_path):
         "import sys; from diagrams.cli import main; sys.exit(main(sys.argv[1:]))",
         "simulate",
         "paper_moving_wall",
+        "--set",
+        "duration=300",
         "--out",
         str(out),
     ]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
-        # The 10 s FlexiForce run takes far longer than this to simulate.
+        # 300 s of the FlexiForce loop take over a minute to simulate (about 3 s per 10 s).
         with pytest.raises(subprocess.TimeoutExpired):
             process.wait(timeout=4.0)
     finally:
