@@ -94,6 +94,15 @@ def _window(time: np.ndarray, start: float, end: float) -> np.ndarray:
     return (time >= start) & (time <= end)
 
 
+def _until(time: np.ndarray, start: float, end: float) -> np.ndarray:
+    """Samples in [start, end): at `end` the next event has happened (a sample logged at
+    that very instant, as a sampled controller's step gives, already shows it). The run's
+    last sample is kept when `end` is the end of the run."""
+    if time.size and end >= time[-1]:
+        return _window(time, start, end)
+    return (time >= start) & (time < end)
+
+
 def _trailing_average(time: np.ndarray, values: np.ndarray, window: float) -> np.ndarray:
     """Mean of `values` over [t - window, t] at each sample (trapezoid, irregular times)."""
     integral = np.concatenate([[0.0], np.cumsum(np.diff(time) * 0.5 * (values[1:] + values[:-1]))])
@@ -106,11 +115,11 @@ def _trailing_average(time: np.ndarray, values: np.ndarray, window: float) -> np
 
 
 def _settling_time(time, force, reference, event_time, end_time) -> float | None:
-    """Time after `event_time` from which |F - Fr| <= 5 % Fr until `end_time`.
+    """Time after `event_time` from which |F - Fr| <= 5 % Fr until `end_time` (exclusive).
 
     `force` may be averaged first to ignore noise ripple (see compute_metrics).
     """
-    mask = _window(time, event_time, end_time)
+    mask = _until(time, event_time, end_time)
     t = time[mask]
     outside = np.abs(force[mask] - reference) > SETTLE_BAND * reference
     if t.size == 0 or outside[-1]:
@@ -197,8 +206,8 @@ def compute_metrics(result: SimulationResult) -> dict:
     settled = after.copy()
     for index, (kind, event_time) in enumerate(events):
         next_time = events[index + 1][1] if index + 1 < len(events) else duration
-        before = _window(time, event_time - STEADY_WINDOW, event_time)
-        window = _window(time, event_time, next_time)
+        before = _until(time, event_time - STEADY_WINDOW, event_time)
+        window = _until(time, event_time, next_time)
         settled &= ~_window(time, event_time, event_time + STEADY_WINDOW)
         metrics["events"].append(
             {
@@ -223,9 +232,9 @@ def compute_metrics(result: SimulationResult) -> dict:
     metrics["finite_actuation"] = bool(np.all(np.isfinite(result.actuation)))
     metrics["faults"] = []
     for fault in scenario.faults:
-        during = _window(time, fault.start, min(fault.end, duration))
+        during = _until(time, fault.start, min(fault.end, duration))
         recovery_end = min([e[1] for e in events if e[1] > fault.end] + [duration])
-        after = _window(time, fault.end, recovery_end)
+        after = _until(time, fault.end, recovery_end)
         metrics["faults"].append(
             {
                 "kind": fault.kind,
