@@ -435,6 +435,10 @@ def _require(condition: bool, key: str, allowed: str, value) -> None:
         raise ScenarioError(f"{key}: must be {allowed}, got {value!r}")
 
 
+def _require_one_of(value, key: str, choices: typing.Sequence[str]) -> None:
+    _require(value in choices, key, "one of " + ", ".join(choices), value)
+
+
 # Stiffer than any contact this arm can make (steel on steel at this scale is ~1e9 N/m).
 MAX_STIFFNESS = 1e9
 
@@ -531,12 +535,7 @@ def validate(scenario: Scenario) -> Scenario:
         a.force_bound_gain,
     )
     k = s.controller
-    _require(
-        k.kind in CONTROLLER_KINDS,
-        "controller.kind",
-        "one of " + ", ".join(CONTROLLER_KINDS),
-        k.kind,
-    )
+    _require_one_of(k.kind, "controller.kind", CONTROLLER_KINDS)
     _require(
         k.tuning in ("matched", "manual"), "controller.tuning", "'matched' or 'manual'", k.tuning
     )
@@ -568,9 +567,7 @@ def validate(scenario: Scenario) -> Scenario:
     )
     for i, fault in enumerate(s.faults):
         key = f"faults[{i}]"
-        _require(
-            fault.kind in FAULT_KINDS, key + ".kind", "one of " + ", ".join(FAULT_KINDS), fault.kind
-        )
+        _require_one_of(fault.kind, key + ".kind", FAULT_KINDS)
         _require(finite(fault.start) and fault.start >= 0, key + ".start", ">= 0 s", fault.start)
         _require(finite(fault.end) and fault.end > fault.start, key + ".end", "> start", fault.end)
         _require(finite(fault.value), key + ".value", "finite", fault.value)
@@ -662,12 +659,7 @@ def validate(scenario: Scenario) -> Scenario:
         r.initial_position,
     )
     c = s.simulator
-    _require(
-        c.integration_scheme in _INTEGRATION_SCHEMES,
-        "simulator.integration_scheme",
-        "one of " + ", ".join(_INTEGRATION_SCHEMES),
-        c.integration_scheme,
-    )
+    _require_one_of(c.integration_scheme, "simulator.integration_scheme", _INTEGRATION_SCHEMES)
     _require(
         finite(c.accuracy) and 0 < c.accuracy <= 0.1,
         "simulator.accuracy",

@@ -121,12 +121,13 @@ def CartesianPid_(T):
             )
             # The whole law (kinematics, torque and dz/dt) is computed once per context and
             # read by both the output and the state update: one Python evaluation of the
-            # kinematics per derivative evaluation of the closed loop.
+            # kinematics per derivative evaluation of the closed loop. The integral is the
+            # continuous state, or the first 3 discrete states of the sampled controller.
             self._law_cache = self.DeclareCacheEntry(
                 description="actuation and integral rate",
                 value_producer=ValueProducer(allocate=Value[object]().Clone, calc=self._CalcLaw),
                 prerequisites_of_calc={
-                    self.all_state_ticket(),
+                    self.xc_ticket() if self._period == 0.0 else self.xd_ticket(),
                     *(
                         self.input_port_ticket(port.get_index())
                         for port in (
@@ -140,7 +141,10 @@ def CartesianPid_(T):
             if self._period == 0.0:
                 self.DeclareContinuousState(3)
                 self.actuation_output = self.DeclareVectorOutputPort(
-                    "actuation", num_actuators, self._CalcContinuousActuation
+                    "actuation",
+                    num_actuators,
+                    self._CalcContinuousActuation,
+                    prerequisites_of_calc={self._law_cache.ticket()},
                 )
             else:
                 # Discrete state: [integral of ec (3), held actuation (nu)].
@@ -229,16 +233,10 @@ def CartesianPid_(T):
             torque = jacobian.T @ wrench
             if not self._actuators_in_joint_order:
                 torque = self._actuation_from_generalized @ torque
-            if T is float:
-                saturated = any(
-                    abs(t) > limit
-                    for t, limit in zip(torque.tolist(), self._effort_limits_list, strict=True)
-                )
-            else:
-                saturated = any(
-                    abs(t.value()) > limit
-                    for t, limit in zip(torque, self._effort_limits_list, strict=True)
-                )
+            values = torque.tolist() if T is float else [t.value() for t in torque]
+            saturated = any(
+                abs(t) > limit for t, limit in zip(values, self._effort_limits_list, strict=True)
+            )
             if not saturated:
                 value.set_value((torque, error, error))
                 return

@@ -179,7 +179,10 @@ def OptimalAdmittance_(T):
                     },
                 )
                 self.reference_offset_output = self.DeclareVectorOutputPort(
-                    "reference_offset", self._num_axes, self._CalcContinuousOutput
+                    "reference_offset",
+                    self._num_axes,
+                    self._CalcContinuousOutput,
+                    prerequisites_of_calc={self._law_cache.ticket()},
                 )
             else:
                 # Discrete state: [z (integral of E), Xr held].
