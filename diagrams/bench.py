@@ -44,9 +44,9 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from diagrams.closed_loop import AddPlanarArm, BuildClosedLoop, SetInitialConditions
-from diagrams.scenario import LoggingConfig, Scenario
-from diagrams.simulation import run_scenario
+from admittance.diagrams.closed_loop import AddPlanarArm, BuildClosedLoop, SetInitialConditions
+from admittance.diagrams.scenario import LoggingConfig, Scenario
+from admittance.diagrams.simulation import run_scenario
 
 __all__ = ["format_benchmark", "run_benchmark"]
 

@@ -1,4 +1,4 @@
-"""The `admittance` command line (design.md, "Command line").
+"""The `admittance` command line (see README.md, "Commands").
 
     admittance simulate  [SCENARIO] [--set KEY=VALUE ...] [--out DIR] [--force]
     admittance stability [SCENARIO] [--set KEY=VALUE ...] [--out DIR] [--force] [--quick]
@@ -20,8 +20,8 @@ import os
 import sys
 from pathlib import Path
 
-from diagrams.output import OutputExistsError, atomic_write_text, check_output_dir
-from diagrams.scenario import ScenarioError, builtin_scenario_names, load_scenario
+from admittance.diagrams.output import OutputExistsError, atomic_write_text, check_output_dir
+from admittance.diagrams.scenario import ScenarioError, builtin_scenario_names, load_scenario
 
 DEFAULT_SCENARIO = "paper_stiffness_step"
 EXIT_INPUT_ERROR = 2
@@ -54,8 +54,8 @@ def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from diagrams.report import summary, write_results
-    from diagrams.simulation import SimulationDivergedError, run_scenario
+    from admittance.diagrams.report import summary, write_results
+    from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
 
     scenario = load_scenario(args.scenario, args.overrides)
     out = Path(args.out) if args.out else Path("results") / scenario.name
@@ -71,15 +71,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     print(summary(result))
     print(f"wrote {out}/: timeseries.csv, metrics.json, scenario.yaml, fig5-7 PNG")
     if args.meshcat_html:
-        from diagrams.visualization import write_meshcat_replay
+        from admittance.diagrams.visualization import write_meshcat_replay
 
         print(f"wrote {write_meshcat_replay(result, args.meshcat_html)} (Meshcat replay)")
     return 0
 
 
 def _cmd_diagram(args: argparse.Namespace) -> int:
-    from diagrams.closed_loop import BuildClosedLoop
-    from diagrams.visualization import write_diagram_picture
+    from admittance.diagrams.closed_loop import BuildClosedLoop
+    from admittance.diagrams.visualization import write_diagram_picture
 
     scenario = load_scenario(args.scenario, args.overrides)
     suffix = Path(args.out).suffix.lower()
@@ -93,7 +93,7 @@ def _cmd_diagram(args: argparse.Namespace) -> int:
 def _cmd_bench(args: argparse.Namespace) -> int:
     import json
 
-    from diagrams.bench import format_benchmark, run_benchmark
+    from admittance.diagrams.bench import format_benchmark, run_benchmark
 
     scenario = load_scenario(args.scenario, args.overrides)
     if args.repeat < 1:
@@ -109,9 +109,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from diagrams.compare import compare_controllers, format_table, write_comparison
-    from diagrams.force_controllers import baseline_gains
-    from diagrams.scenario import CONTROLLER_KINDS
+    from admittance.diagrams.compare import compare_controllers, format_table, write_comparison
+    from admittance.diagrams.force_controllers import baseline_gains
+    from admittance.diagrams.scenario import CONTROLLER_KINDS
 
     kinds = [k.strip() for k in args.controllers.split(",")] if args.controllers else None
     for kind in kinds or []:
@@ -135,7 +135,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_stability(args: argparse.Namespace) -> int:
-    from diagrams.stability_report import MapAxes, analyse, format_report, write_report
+    from admittance.diagrams.stability_report import MapAxes, analyse, format_report, write_report
 
     scenario = load_scenario(args.scenario, args.overrides)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_stability"
@@ -149,7 +149,7 @@ def _cmd_stability(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from diagrams.sweep import SweepWorkerError, define_sweep, run_sweep
+    from admittance.diagrams.sweep import SweepWorkerError, define_sweep, run_sweep
 
     definition = define_sweep(
         args.scenario,
@@ -187,12 +187,23 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def _version() -> str:
+    """The installed distribution's version (one source: pyproject.toml)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("optimal-admittance")
+    except PackageNotFoundError:  # pragma: no cover (running from an uninstalled tree)
+        return "unknown"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="admittance",
         description="Optimal admittance control of a 3-DOF planar arm against a compliant "
         "wall (Drake).",
     )
+    parser.add_argument("--version", action="version", version=f"admittance {_version()}")
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     simulate = commands.add_parser("simulate", help="run one scenario headless, write results")
     _add_scenario_arguments(simulate)
@@ -310,7 +321,7 @@ def main(argv: list[str] | None = None) -> int:
     import matplotlib
 
     matplotlib.use("Agg")  # headless: figures go to files
-    from diagrams.visualization import DiagramPictureError
+    from admittance.diagrams.visualization import DiagramPictureError
 
     parser = build_parser()
     args = parser.parse_args(argv)

@@ -24,14 +24,14 @@ from pydrake.systems.primitives import (
     VectorLogSink,
 )
 
-from diagrams.force_controllers import WALL_NORMAL_AXIS, AddForceController
-from diagrams.scenario import Scenario, ScenarioError
-from systems.cartesian_pid import CartesianPid
-from systems.compliant_wall import CompliantWall
-from systems.desired_trajectory import DesiredTrajectory
-from systems.flexiforce import FlexiForceSensor
-from systems.planar_kinematics import PlanarFrameKinematics
-from systems.sensor_fault import SensorFault
+from admittance.diagrams.force_controllers import WALL_NORMAL_AXIS, AddForceController
+from admittance.diagrams.scenario import Scenario, ScenarioError
+from admittance.systems.cartesian_pid import CartesianPid
+from admittance.systems.compliant_wall import CompliantWall
+from admittance.systems.desired_trajectory import DesiredTrajectory
+from admittance.systems.flexiforce import FlexiForceSensor
+from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.sensor_fault import SensorFault
 
 __all__ = [
     "ClosedLoop",

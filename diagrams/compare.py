@@ -31,9 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-from diagrams.output import atomic_output_dir, json_safe
-from diagrams.scenario import CONTROLLER_KINDS, Scenario, load_scenario, scenario_to_yaml
-from diagrams.simulation import SETTLE_BAND, settling_columns
+from admittance.diagrams.output import atomic_output_dir, json_safe
+from admittance.diagrams.scenario import CONTROLLER_KINDS, Scenario, load_scenario, scenario_to_yaml
+from admittance.diagrams.simulation import SETTLE_BAND, settling_columns
 
 __all__ = ["ControllerRun", "compare_controllers", "format_table", "write_comparison"]
 
@@ -88,7 +88,7 @@ def _scaled(value, factor):
 
 def _run_one(source, overrides: list[str], kind: str) -> ControllerRun:
     """Runs one controller (in a worker process); never raises for a failed run."""
-    from diagrams.simulation import SimulationDivergedError, run_scenario
+    from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
 
     scenario = load_scenario(source, [*overrides, f"controller.kind={kind}"])
     try:
@@ -201,7 +201,7 @@ def write_comparison(
     """Writes table.txt, table.csv, metrics.json, force.png and scenario.yaml atomically."""
     import matplotlib.pyplot as plt
 
-    from diagrams.force_controllers import baseline_gains
+    from admittance.diagrams.force_controllers import baseline_gains
 
     with atomic_output_dir(out_dir, overwrite=overwrite) as staging:
         (staging / "table.txt").write_text(format_table(runs))

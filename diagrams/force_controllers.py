@@ -27,11 +27,11 @@ from __future__ import annotations
 
 from pydrake.systems.framework import DiagramBuilder
 
-from diagrams.scenario import Scenario
-from systems.adaptive_impedance import AdaptiveImpedance
-from systems.classical_admittance import ClassicalAdmittance
-from systems.fixed_reference import FixedReference
-from systems.optimal_admittance import OptimalAdmittance
+from admittance.diagrams.scenario import Scenario
+from admittance.systems.adaptive_impedance import AdaptiveImpedance
+from admittance.systems.classical_admittance import ClassicalAdmittance
+from admittance.systems.fixed_reference import FixedReference
+from admittance.systems.optimal_admittance import OptimalAdmittance
 
 __all__ = ["AddForceController", "baseline_gains"]
 
@@ -77,7 +77,8 @@ def AddForceController(builder: DiagramBuilder, scenario: Scenario):
         system = OptimalAdmittance(
             gamma=admittance.gamma,
             alpha=admittance.alpha,
-            # K of eq. 10 is the PID's stiffness on the wall-normal axis (paper-notes 4).
+            # K of eq. 10 is the PID's stiffness on the wall-normal axis
+            # (docs/paper-notes.md, section 4).
             stiffness=scenario.pid.kp[WALL_NORMAL_AXIS],
             force_axes=axes,
             num_axes=3,

@@ -15,14 +15,14 @@ import numpy as np
 from pydrake.systems.framework import Context
 from pydrake.systems.primitives import Linearize, LinearSystem
 
-from diagrams.closed_loop import (
+from admittance.diagrams.closed_loop import (
     WALL_NORMAL_AXIS,
     BuildClosedLoop,
     ClosedLoop,
     SolvePlanarInverseKinematics,
 )
-from diagrams.scenario import Scenario, ScenarioError
-from systems.planar_kinematics import PlanarFrameKinematics
+from admittance.diagrams.scenario import Scenario, ScenarioError
+from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
 __all__ = ["Equilibrium", "FindContactEquilibrium", "LinearizeAtEquilibrium", "static_scenario"]
 

@@ -12,9 +12,9 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from diagrams.output import atomic_output_dir, json_safe
-from diagrams.scenario import scenario_to_yaml
-from diagrams.simulation import SimulationResult
+from admittance.diagrams.output import atomic_output_dir, json_safe
+from admittance.diagrams.scenario import scenario_to_yaml
+from admittance.diagrams.simulation import SimulationResult
 
 __all__ = ["write_results", "plot_errors", "plot_reference", "plot_force", "summary"]
 

@@ -1,4 +1,4 @@
-"""Scenarios: typed YAML descriptions of one closed-loop run (design.md, "Scenarios").
+"""Scenarios: typed YAML descriptions of one closed-loop run (README.md, "Scenarios").
 
 A scenario is a tree of dataclasses loaded with Drake's ``yaml_load_typed``. Every field has
 a default equal to the paper's value (Section VII-A); the built-in scenarios in
@@ -21,6 +21,8 @@ from pathlib import Path
 from pydrake.common.yaml import yaml_dump_typed, yaml_load, yaml_load_typed
 from pydrake.systems.analysis import SimulatorConfig
 
+from admittance.urdf import URDF_DIR
+
 __all__ = [
     "AdmittanceConfig",
     "ArmConfig",
@@ -42,7 +44,6 @@ __all__ = [
 ]
 
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
-URDF_DIR = Path(__file__).resolve().parents[1] / "urdf"
 
 
 class ScenarioError(ValueError):
@@ -198,7 +199,8 @@ class SensorConfig:
 
 @dataclass
 class ArmConfig:
-    # URDF of the arm (relative paths are relative to the project's urdf/ folder).
+    # URDF of the arm: a file path (relative to the current folder, or in a scenario file to
+    # that file's folder), or the name of a built-in model (planar_arm.urdf).
     urdf: str = "planar_arm.urdf"
     # Name of the frame at the contact point.
     fingertip_frame: str = "fingertip"
@@ -245,8 +247,11 @@ class Scenario:
         return self.controller.kind if self.admittance.enabled else "pid_only"
 
     def urdf_path(self) -> Path:
-        path = Path(self.arm.urdf)
-        return path if path.is_absolute() else URDF_DIR / path
+        """The arm's URDF file: `arm.urdf` as a path if it names a file, else a built-in."""
+        path = Path(self.arm.urdf).expanduser()
+        if path.is_absolute() or path.is_file():
+            return path
+        return URDF_DIR / path
 
 
 # --- keys and types ---------------------------------------------------------------------
@@ -609,7 +614,7 @@ def validate(scenario: Scenario) -> Scenario:
     _require(n.kind in ("ideal", "flexiforce"), "sensor.kind", "'ideal' or 'flexiforce'", n.kind)
     if n.kind == "flexiforce":
         # A reference the sensor cannot read would wind the admittance up forever.
-        from systems.flexiforce import FlexiForceSensor
+        from admittance.systems.flexiforce import FlexiForceSensor
 
         full_scale = FlexiForceSensor().saturation_force
         _require(
@@ -712,6 +717,12 @@ def _read_source(source: str | Path | None) -> tuple[dict, str]:
     if not isinstance(data, dict):
         raise ScenarioError(f"scenario: {path} must hold a mapping of scenario keys")
     data.setdefault("name", path.stem)
+    arm = data.get("arm")
+    if isinstance(arm, dict) and isinstance(arm.get("urdf"), str):
+        # A URDF named relative to the scenario file: resolve it against the file's folder.
+        beside = path.resolve().parent / arm["urdf"]
+        if not Path(arm["urdf"]).is_absolute() and beside.is_file():
+            arm["urdf"] = str(beside)
     return data, path.stem
 
 

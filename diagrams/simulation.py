@@ -10,9 +10,9 @@ import numpy as np
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import EventStatus
 
-from diagrams.closed_loop import BuildClosedLoop, ClosedLoop, SetInitialConditions
-from diagrams.scenario import Scenario
-from systems.planar_kinematics import PlanarFrameKinematics
+from admittance.diagrams.closed_loop import BuildClosedLoop, ClosedLoop, SetInitialConditions
+from admittance.diagrams.scenario import Scenario
+from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
 __all__ = [
     "SimulationDivergedError",
@@ -61,7 +61,7 @@ class SimulationResult:
         return self.scenario.force_reference
 
     def columns(self) -> dict[str, np.ndarray]:
-        """The timeseries.csv columns (design.md), in order."""
+        """The timeseries.csv columns, in order."""
         cartesian_error = self.desired_position + self.reference_offset - self.pose
         return {
             "time": self.time,
@@ -131,7 +131,7 @@ def _settling_time(time, force, reference, event_time, end_time) -> float | None
 
 
 def compute_metrics(result: SimulationResult) -> dict:
-    """Force metrics of design.md, plus per-event settling and contact losses."""
+    """The force metrics of metrics.json, plus per-event settling and contact losses."""
     time = result.time
     force = result.force
     reference = result.force_reference

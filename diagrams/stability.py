@@ -35,15 +35,15 @@ from pydrake.systems.analysis import (
 from pydrake.systems.framework import DiagramBuilder, EventStatus, InputPortIndex
 from pydrake.systems.primitives import Linearize
 
-from diagrams.closed_loop import WALL_NORMAL_AXIS, AddPlanarArm, BuildClosedLoop
-from diagrams.linearization import (
+from admittance.diagrams.closed_loop import WALL_NORMAL_AXIS, AddPlanarArm, BuildClosedLoop
+from admittance.diagrams.linearization import (
     FindContactEquilibrium,
     LinearizeAtEquilibrium,
     static_scenario,
 )
-from diagrams.scenario import Scenario, ScenarioError, scenario_keys, validate
-from diagrams.simulation import SimulationResult
-from systems.planar_kinematics import PlanarFrameKinematics
+from admittance.diagrams.scenario import Scenario, ScenarioError, scenario_keys, validate
+from admittance.diagrams.simulation import SimulationResult
+from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
 __all__ = [
     "critical_gamma",

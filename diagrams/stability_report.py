@@ -10,11 +10,11 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium
-from diagrams.output import atomic_output_dir
-from diagrams.scenario import Scenario
-from diagrams.simulation import run_scenario
-from diagrams.stability import (
+from admittance.diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium
+from admittance.diagrams.output import atomic_output_dir
+from admittance.diagrams.scenario import Scenario
+from admittance.diagrams.simulation import run_scenario
+from admittance.diagrams.stability import (
     critical_gamma,
     linear_versus_nonlinear,
     lyapunov_along_trajectory,

@@ -105,8 +105,8 @@ from pathlib import Path
 
 import numpy as np
 
-from diagrams.output import atomic_write, atomic_write_text, json_safe
-from diagrams.scenario import (
+from admittance.diagrams.output import atomic_write, atomic_write_text, json_safe
+from admittance.diagrams.scenario import (
     SCENARIO_DIR,
     ScenarioError,
     builtin_scenario_names,
@@ -114,7 +114,7 @@ from diagrams.scenario import (
     parse_overrides,
     parse_value,
 )
-from diagrams.simulation import settling_columns
+from admittance.diagrams.simulation import settling_columns
 
 __all__ = [
     "GRID_FORMS",
@@ -572,7 +572,7 @@ def run_point(task: Mapping) -> dict:
     absolute YAML path) and ``overrides`` (the mapping for load_scenario). Runs in a worker
     process (or a Dask worker): it imports the project itself.
     """
-    from diagrams.simulation import SimulationDivergedError, run_scenario
+    from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
 
     start = time.perf_counter()
     row = {

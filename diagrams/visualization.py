@@ -37,8 +37,8 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.tree import BodyIndex
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from diagrams.closed_loop import AddPlanarArm
-from diagrams.simulation import SimulationResult
+from admittance.diagrams.closed_loop import AddPlanarArm
+from admittance.diagrams.simulation import SimulationResult
 
 __all__ = [
     "DIAGRAM_PICTURE_SUFFIXES",

@@ -12,7 +12,7 @@ from pydrake.math import min as scalar_min
 from pydrake.systems.framework import LeafSystem_, ValueProducer
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from systems.planar_kinematics import PlanarFrameKinematics, wrap_angle
+from admittance.systems.planar_kinematics import PlanarFrameKinematics, wrap_angle
 
 __all__ = ["CartesianPid", "CartesianPid_"]
 

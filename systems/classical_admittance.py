@@ -22,7 +22,7 @@ from pydrake.autodiffutils import AutoDiffXd
 from pydrake.systems.framework import LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from systems.force_axes import (
+from admittance.systems.force_axes import (
     check_axes,
     declare_force_ports,
     force_error,

@@ -21,7 +21,7 @@ from pydrake.autodiffutils import AutoDiffXd
 from pydrake.systems.framework import LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from systems.force_axes import check_axes, per_axis, scatter
+from admittance.systems.force_axes import check_axes, per_axis, scatter
 
 __all__ = ["FixedReference", "FixedReference_"]
 

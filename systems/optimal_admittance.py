@@ -3,19 +3,20 @@
 The paper minimises I = 1/2 |E + alpha dE/dt|^2 over the reference offset Xr by a gradient
 flow (eq. 8). With E = Fr - F and the impedance model of eq. 5, dE/dXr = -K, so
 
-    dXr/dt = + Gamma K (E + alpha dE/dt)                          (eq. 10', paper-notes 2)
+    dXr/dt = + Gamma K (E + alpha dE/dt)                          (eq. 10', docs/paper-notes.md §2)
 
 The printed eq. 9-10 carry the opposite sign, which drives the arm away from the wall; this
 module implements the corrected sign: while the measured force is below the desired one
 (E > 0) the reference moves along +axis (into the wall), and while it is above (E < 0) the
-reference recedes. Integrating once (paper-notes 3) removes the derivative of the noisy force:
+reference recedes. Integrating once (docs/paper-notes.md §3) removes the derivative of the
+noisy force:
 
     Xr(t) = Gamma K [ z(t) + alpha (E(t) - E(0)) ],   dz/dt = E.
 
 Seen from the force error this is a proportional-integral law with proportional gain
 Gamma K alpha and integral gain Gamma K. The block never differentiates the measured force.
 
-Explicit force bound (the paper's future work, issue 6). With an upper bound Fmax > Fr the
+Explicit force bound (the paper's future work). With an upper bound Fmax > Fr the
 cost gets an exterior penalty on the force above a guard level Fg = (Fr + Fmax) / 2,
 
     I_b = 1/2 |E + alpha dE/dt|^2 + mu/2 |G + alpha dG/dt|^2,   G = max(0, F - Fg),
@@ -51,7 +52,7 @@ from pydrake.common.value import Value
 from pydrake.systems.framework import BasicVector_, LeafSystem_, ValueProducer
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from systems.force_axes import check_axes, force_error, per_axis, scatter
+from admittance.systems.force_axes import check_axes, force_error, per_axis, scatter
 
 __all__ = ["OptimalAdmittance", "OptimalAdmittance_"]
 
@@ -72,7 +73,7 @@ def OptimalAdmittance_(T):
         force error at t = 0 (a numeric parameter, see ``set_initial_force_error``) so that
         Xr(0) = 0.
 
-        Safety (issue 7): a reading that is not finite (a broken sensor) freezes the integral
+        Safety: a reading that is not finite (a broken sensor) freezes the integral
         and takes E = 0, holding Xr at its settled value; Xr stays within
         [-max_retract, max_push], and past a bound a back-calculation term
         (clamped Xr - unclamped Xr) / (Gamma K tau_aw), tau_aw = max(10 ms, 5 period), pulls

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from diagrams.closed_loop import AddPlanarArm
-from diagrams.scenario import Scenario
+from admittance.diagrams.closed_loop import AddPlanarArm
+from admittance.diagrams.scenario import Scenario
 
 
 @pytest.fixture(scope="session")

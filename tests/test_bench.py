@@ -9,8 +9,8 @@ import json
 
 import pytest
 
-from diagrams.bench import format_benchmark, run_benchmark
-from diagrams.scenario import load_scenario
+from admittance.diagrams.bench import format_benchmark, run_benchmark
+from admittance.diagrams.scenario import load_scenario
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from pydrake.autodiffutils import AutoDiffXd
 
-from systems.cartesian_pid import CartesianPid
+from admittance.systems.cartesian_pid import CartesianPid
 
 LENGTHS = (0.20, 0.20, 0.10)
 KP, KD, KI = [2500.0, 2500.0, 1000.0], [50.0, 50.0, 5.0], [200.0, 200.0, 200.0]

@@ -1,4 +1,4 @@
-"""Closed-loop runs of the paper's scenarios: the behaviour issue #2 asks for.
+"""Closed-loop runs of the paper's scenarios: force tracking, signs, bounds.
 
 Tolerances are the acceptance criteria of the project (README, "What the runs show"): a
 mean force error under 1 % of Fr at steady state, a return to within 5 % of Fr in under 1 s
@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from diagrams.scenario import load_scenario
-from diagrams.simulation import run_scenario
+from admittance.diagrams.scenario import load_scenario
+from admittance.diagrams.simulation import run_scenario
 
 
 def _event(result, kind):

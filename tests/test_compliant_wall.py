@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from systems.compliant_wall import CompliantWall
-from systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.compliant_wall import CompliantWall
+from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
 Q = np.array([-0.45, 1.66, 0.36])  # an elbow configuration near the paper's task point
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from systems.desired_trajectory import DesiredTrajectory
+from admittance.systems.desired_trajectory import DesiredTrajectory
 
 
 @pytest.mark.parametrize("time", [0.0, 1.3, 2.5, 7.0])

@@ -1,4 +1,4 @@
-"""The 1 kHz digital controller (diagrams/scenarios/digital_controller.yaml, issue 4).
+"""The 1 kHz digital controller (diagrams/scenarios/digital_controller.yaml).
 
 The PID and the admittance block sampled at 1 kHz, the FlexiForce read at the same rate: with
 the motors' reflected inertia, Kd_theta = 2 and a force loop slower than the arm (Gamma =
@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import pytest
 
-from diagrams.scenario import load_scenario
-from diagrams.simulation import SimulationDivergedError, run_scenario
+from admittance.diagrams.scenario import load_scenario
+from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
 
 # The stiffness step moved from 15 s to 2 s, to keep the run short.
 SHORT = {"duration": 4.0, "wall.stiffness_steps": [{"time": 2.0, "stiffness": 1e5}]}

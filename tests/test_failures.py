@@ -6,10 +6,10 @@ import json
 
 import pytest
 
-import diagrams.simulation as simulation
-from diagrams.cli import main
-from diagrams.scenario import ScenarioError, load_scenario
-from diagrams.simulation import SimulationDivergedError, run_scenario
+import admittance.diagrams.simulation as simulation
+from admittance.diagrams.cli import main
+from admittance.diagrams.scenario import ScenarioError, load_scenario
+from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
 
 
 def test_unreachable_trajectory_is_rejected_before_simulating():

@@ -1,4 +1,4 @@
-"""Faults injected from the scenario (issue 7): the controller's documented behaviour.
+"""Faults injected from the scenario: the controller's documented behaviour.
 
 Every closed-loop case runs the stiffness-step arm against the 5e4 N/m wall (no Ke step),
 Fr = 5 N, with one fault from t = 1.5 s to t = 2.0 s, and checks:
@@ -20,10 +20,10 @@ import numpy as np
 import pytest
 from pydrake.autodiffutils import AutoDiffXd
 
-from diagrams.scenario import ScenarioError, load_scenario
-from diagrams.simulation import run_scenario
-from systems.optimal_admittance import OptimalAdmittance
-from systems.sensor_fault import SensorFault
+from admittance.diagrams.scenario import ScenarioError, load_scenario
+from admittance.diagrams.simulation import run_scenario
+from admittance.systems.optimal_admittance import OptimalAdmittance
+from admittance.systems.sensor_fault import SensorFault
 
 FR = 5.0
 START, END = 1.5, 2.0
@@ -46,8 +46,8 @@ def _run(kind: str, value: float = 0.0, sensor: str = "ideal"):
 
 
 def _check_common(result, fault) -> None:
-    # The FlexiForce noise leaves a ripple of about 0.1 N: 2 % of Fr on average (the core
-    # issue's tracking criterion); the ideal sensor settles to 1 %.
+    # The FlexiForce noise leaves a ripple of about 0.1 N: 2 % of Fr on average (the
+    # project's tracking criterion); the ideal sensor settles to 1 %.
     tolerance = 0.02 if result.scenario.sensor.kind == "flexiforce" else 0.01
     assert result.metrics["finite_actuation"]
     assert np.all(np.isfinite(result.actuation))

@@ -16,7 +16,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, Gain, Linearize
 
-from systems.flexiforce import FlexiForceSensor
+from admittance.systems.flexiforce import FlexiForceSensor
 
 GAIN = 0.045  # V/N
 V_OFFSET = 3.75e-3  # V

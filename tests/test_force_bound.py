@@ -1,4 +1,4 @@
-"""The explicit force bound (admittance.max_force, issue 6): after the first contact
+"""The explicit force bound (admittance.max_force): after the first contact
 transient the true contact force stays under Fmax wherever the arm can hold it.
 
 Fmax = 2 Fr = 10 N. The wall approaches the arm (negative wall.velocity) for 0.2 s from
@@ -14,8 +14,8 @@ import itertools
 
 import pytest
 
-from diagrams.scenario import load_scenario
-from diagrams.simulation import run_scenario
+from admittance.diagrams.scenario import load_scenario
+from admittance.diagrams.simulation import run_scenario
 
 MAX_FORCE = 10.0
 APPROACH = ["wall.motion_end=2.7", "duration=4"]

@@ -9,12 +9,12 @@ import re
 import numpy as np
 import pytest
 
-from diagrams.force_controllers import baseline_gains
-from diagrams.scenario import CONTROLLER_KINDS, ScenarioError, load_scenario
-from systems.adaptive_impedance import AdaptiveImpedance
-from systems.classical_admittance import ClassicalAdmittance
-from systems.fixed_reference import FixedReference
-from systems.optimal_admittance import OptimalAdmittance
+from admittance.diagrams.force_controllers import baseline_gains
+from admittance.diagrams.scenario import CONTROLLER_KINDS, ScenarioError, load_scenario
+from admittance.systems.adaptive_impedance import AdaptiveImpedance
+from admittance.systems.classical_admittance import ClassicalAdmittance
+from admittance.systems.fixed_reference import FixedReference
+from admittance.systems.optimal_admittance import OptimalAdmittance
 
 
 def _fix(block, measured, desired, state=None):
@@ -135,7 +135,7 @@ def test_controller_keys_are_validated(override, message):
 
 
 def test_every_controller_kind_builds_a_loop():
-    from diagrams.closed_loop import BuildClosedLoop
+    from admittance.diagrams.closed_loop import BuildClosedLoop
 
     for kind in CONTROLLER_KINDS:
         loop = BuildClosedLoop(load_scenario("paper_moving_wall", [f"controller.kind={kind}"]))

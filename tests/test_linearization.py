@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium
-from diagrams.scenario import load_scenario
+from admittance.diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium
+from admittance.diagrams.scenario import load_scenario
 
 
 def _linearize(*overrides):

@@ -1,4 +1,4 @@
-"""A 300 s stiffness-step run with the FlexiForce chain and its noise (issue 7, slow).
+"""A 300 s stiffness-step run with the FlexiForce chain and its noise (slow).
 
 Checks that nothing drifts over five minutes of noisy contact: the admittance offset Xr,
 the admittance integral z and the PID integral, sampled every 50 s at the same phase of the
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
-from diagrams.closed_loop import BuildClosedLoop, SetInitialConditions
-from diagrams.scenario import load_scenario
+from admittance.diagrams.closed_loop import BuildClosedLoop, SetInitialConditions
+from admittance.diagrams.scenario import load_scenario
 
 DURATION = 300.0
 CHUNK = 50.0  # a multiple of the trajectory's 10 s period

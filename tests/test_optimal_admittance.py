@@ -8,9 +8,9 @@ import pytest
 from pydrake.autodiffutils import AutoDiffXd, InitializeAutoDiff
 from pydrake.systems.analysis import Simulator
 
-from systems.optimal_admittance import OptimalAdmittance
+from admittance.systems.optimal_admittance import OptimalAdmittance
 
-GAMMA, ALPHA, K = 1e-5, 0.1, 2500.0  # the paper's x-axis values (paper-notes 4)
+GAMMA, ALPHA, K = 1e-5, 0.1, 2500.0  # the paper's x-axis values (docs/paper-notes.md §4)
 
 
 def _block(**kwargs):
@@ -45,7 +45,7 @@ def test_output_is_the_derivative_free_law():
     "measured, direction", [(2.0, +1.0), (8.0, -1.0)], ids=["below_Fr", "above_Fr"]
 )
 def test_sign_moves_reference_toward_the_wall_while_force_is_low(measured, direction):
-    """paper-notes 2: F < Fr => Xr grows along +x (into the wall); F > Fr => it recedes."""
+    """docs/paper-notes.md §2: F < Fr => Xr grows along +x (into the wall); F > Fr => it recedes."""
     block = _block()
     context = _context(block, measured=measured, desired=5.0)
     simulator = Simulator(block, context)

@@ -1,4 +1,4 @@
-"""Property-based tests over scenario values (issue 7), with hypothesis.
+"""Property-based tests over scenario values, with hypothesis.
 
 Every generated scenario either fails validation with one clear line that names the key,
 or runs to its end with finite numbers. Values are drawn from the engineer's plausible
@@ -15,8 +15,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from diagrams.scenario import ScenarioError, load_scenario
-from diagrams.simulation import run_scenario
+from admittance.diagrams.scenario import ScenarioError, load_scenario
+from admittance.diagrams.simulation import run_scenario
 
 BAD = st.sampled_from([0.0, -1.0, math.nan, math.inf, -math.inf, 1e300, "abc"])
 

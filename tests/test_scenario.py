@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from diagrams.scenario import ScenarioError, builtin_scenario_names, load_scenario
+from admittance.diagrams.scenario import ScenarioError, builtin_scenario_names, load_scenario
 
 
 def test_builtin_scenarios_exist_and_load():

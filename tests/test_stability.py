@@ -1,4 +1,4 @@
-"""Stability analysis (issue #3): eq. 13, the linearized loop, Lyapunov, maps, critical Gamma.
+"""Stability analysis: eq. 13, the linearized loop, Lyapunov, maps, critical Gamma.
 
 The paper's own setting for these checks is the stiffness-step scenario with the FlexiForce
 chain in the loop (the ideal, lag-free sensor has no critical Gamma: see test below).
@@ -11,11 +11,11 @@ import json
 import numpy as np
 import pytest
 
-from diagrams.cli import main
-from diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium
-from diagrams.scenario import load_scenario
-from diagrams.simulation import run_scenario
-from diagrams.stability import (
+from admittance.diagrams.cli import main
+from admittance.diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium
+from admittance.diagrams.scenario import load_scenario
+from admittance.diagrams.simulation import run_scenario
+from admittance.diagrams.stability import (
     critical_gamma,
     linear_versus_nonlinear,
     lyapunov_along_trajectory,

@@ -1,4 +1,4 @@
-"""`admittance sweep` (issue 6, part 4): specs, the table, resume after a kill, Dask.
+"""`admittance sweep`: specs, the table, resume after a kill, Dask.
 
 Every sweep here is a few short runs (1.5-2 s of paper_moving_wall, 2-4 points).
 """
@@ -16,8 +16,8 @@ import time
 
 import pytest
 
-from diagrams.cli import main
-from diagrams.sweep import (
+from admittance.diagrams.cli import main
+from admittance.diagrams.sweep import (
     GRID_FORMS,
     RANDOM_FORMS,
     SweepError,
@@ -66,7 +66,7 @@ def _start_sweep(arguments: list[str]) -> subprocess.Popen:
     # background job without job control passes SIG_IGN on to its children).
     command = (
         "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
-        "from diagrams.cli import main; sys.exit(main(sys.argv[1:]))"
+        "from admittance.diagrams.cli import main; sys.exit(main(sys.argv[1:]))"
     )
     return subprocess.Popen(
         [sys.executable, "-c", command, *arguments],

@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 from pydrake.systems.framework import DiagramBuilder
 
-import diagrams.visualization as visualization
-from diagrams.closed_loop import AddPlanarArm, BuildClosedLoop
-from diagrams.scenario import load_scenario
-from diagrams.simulation import run_scenario
-from diagrams.visualization import (
+import admittance.diagrams.visualization as visualization
+from admittance.diagrams.closed_loop import AddPlanarArm, BuildClosedLoop
+from admittance.diagrams.scenario import load_scenario
+from admittance.diagrams.simulation import run_scenario
+from admittance.diagrams.visualization import (
     DiagramPictureError,
     write_diagram_picture,
     write_meshcat_replay,

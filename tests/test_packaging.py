@@ -1,0 +1,116 @@
+"""The distribution as a user installs it: a wheel, run from a directory outside the checkout.
+
+The wheel goes into a fresh virtualenv that sees the test environment's third-party
+packages (drake, numpy, matplotlib) through a .pth line but not its editable install of
+this project, so every file the commands read must come from the wheel itself.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+import sysconfig
+import venv
+from pathlib import Path
+
+import pytest
+
+REPOSITORY = Path(__file__).resolve().parents[1]
+
+
+def _run(arguments: list, cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [str(a) for a in arguments], cwd=cwd, capture_output=True, text=True, timeout=timeout
+    )
+
+
+@pytest.fixture(scope="module")
+def wheel_env(tmp_path_factory) -> Path:
+    """A virtualenv with the project's wheel installed (not editable); returns its bin/."""
+    root = tmp_path_factory.mktemp("wheel")
+    built = _run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", root / "dist", REPOSITORY],
+        cwd=root,
+    )
+    assert built.returncode == 0, built.stderr
+    (wheel,) = (root / "dist").glob("optimal_admittance-*.whl")
+    environment = root / "venv"
+    venv.EnvBuilder(with_pip=False).create(environment)
+    purelib = Path(
+        sysconfig.get_path("purelib", vars={"base": str(environment), "platbase": str(environment)})
+    )
+    # Third-party packages from the test environment; its editable finder (a .pth of its
+    # own site-packages) is not processed from here, so `admittance` comes from the wheel.
+    here = {sysconfig.get_path("purelib"), sysconfig.get_path("platlib")}
+    (purelib / "test_environment.pth").write_text("\n".join(sorted(here)) + "\n")
+    installed = _run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "--python",
+            environment / "bin" / "python",
+            "install",
+            "-q",
+            "--no-deps",
+            wheel,
+        ],
+        cwd=root,
+    )
+    assert installed.returncode == 0, installed.stderr
+    return environment / "bin"
+
+
+def test_wheel_runs_a_simulation_from_an_unrelated_directory(wheel_env, tmp_path):
+    located = _run(
+        [
+            wheel_env / "python",
+            "-c",
+            "import admittance.diagrams, importlib.util as u; print(admittance.diagrams.__file__);"
+            "print(u.find_spec('diagrams'), u.find_spec('systems'))",
+        ],
+        cwd=tmp_path,
+    )
+    package_file, foreign = located.stdout.splitlines()
+    assert Path(package_file).is_relative_to(wheel_env.parent), package_file
+    # No generic top-level names: `diagrams` and `systems` are left to other distributions.
+    assert foreign == "None None"
+
+    version = _run([wheel_env / "admittance", "--version"], cwd=tmp_path)
+    assert version.returncode == 0 and version.stdout.startswith("admittance "), version
+
+    out = tmp_path / "run"
+    ran = _run(
+        [wheel_env / "admittance", "simulate", "--set", "duration=0.2", "--out", out], tmp_path
+    )
+    assert ran.returncode == 0, ran.stderr
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["first_contact_time"] is not None and metrics["peak_force"] > 0
+
+
+def test_wheel_loads_a_users_own_urdf_and_scenario_by_path(wheel_env, tmp_path):
+    # The user's own copy of the arm, named relative to the scenario file that uses it.
+    shutil.copy(REPOSITORY / "urdf" / "planar_arm.urdf", tmp_path / "my_arm.urdf")
+    (tmp_path / "mine.yaml").write_text(
+        "duration: 0.2\nforce_reference: 4.0\narm:\n  urdf: my_arm.urdf\n"
+    )
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    out = tmp_path / "run"
+    ran = _run(
+        [wheel_env / "admittance", "simulate", tmp_path / "mine.yaml", "--out", out], elsewhere
+    )
+    assert ran.returncode == 0, ran.stderr
+    assert "force_reference: 4.0" in (out / "scenario.yaml").read_text()
+    assert str(tmp_path / "my_arm.urdf") in (out / "scenario.yaml").read_text()
+
+    missing = _run(
+        [wheel_env / "admittance", "simulate", "--set", "arm.urdf=nowhere.urdf", "--out", out],
+        elsewhere,
+    )
+    assert missing.returncode == 2
+    assert missing.stderr.strip().splitlines() == [
+        "admittance: error: arm.urdf: must be an existing URDF file, got 'nowhere.urdf'"
+    ]
