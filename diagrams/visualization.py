@@ -4,7 +4,8 @@
   self-contained HTML file: the arm, the wall at Xe(t) and the contact force as an arrow,
   animated in a 2-D view of the x-y plane. It is built after the run from the logged data,
   on a small diagram of its own (plant + SceneGraph + MeshcatVisualizer), so the simulated
-  loop never carries a visualizer (style.md: analysis diagrams stay visualizer-free).
+  loop never carries a visualizer (analysis diagrams stay visualizer-free, so that they
+  convert to AutoDiffXd).
 * :func:`write_diagram_picture` writes the closed loop's Graphviz rendering (the paper's
   Fig. 1) as SVG or PNG, or its DOT source.
 """
