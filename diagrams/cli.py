@@ -4,6 +4,8 @@
     admittance stability [SCENARIO] [--set KEY=VALUE ...] [--out DIR] [--force] [--quick]
     admittance diagram   [SCENARIO] [--set KEY=VALUE ...] --out FILE
     admittance compare   [SCENARIO] [--set KEY=VALUE ...] [--controllers K,...] [--out DIR]
+    admittance grasp-compare [SCENARIO] [--set KEY=VALUE ...] [--size-errors M,...]
+                         [--stiffness-errors R,...] [--controllers K,...] [--out DIR]
     admittance bench     [SCENARIO] [--set KEY=VALUE ...] [--repeat N] [--json FILE]
     admittance sweep     [SCENARIO] [--set KEY=VALUE ...] [--grid KEY=SPEC ...]
                          [--random KEY=DIST ...] [--samples N] [--seed S] [--workers N]
@@ -53,11 +55,50 @@ def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _arm_scenario(args: argparse.Namespace):
+    """The arm scenario of `args`; a grasp scenario is refused with one line."""
+    from admittance.diagrams.grasp_scenario import GraspScenario
+
+    scenario = load_scenario(args.scenario, args.overrides)
+    if isinstance(scenario, GraspScenario):
+        raise ScenarioError(
+            f"scenario: '{args.scenario}' is a grasp scenario (kind: grasp); `admittance "
+            f"{args.command}` runs arm scenarios only (grasps: simulate, diagram, grasp-compare)"
+        )
+    return scenario
+
+
+def _cmd_simulate_grasp(args: argparse.Namespace, scenario) -> int:
+    from admittance.diagrams.grasp_report import GRASP_FIGURE, grasp_summary, write_grasp_results
+    from admittance.diagrams.grasp_simulation import run_grasp
+    from admittance.diagrams.simulation import SimulationDivergedError
+
+    out = Path(args.out) if args.out else Path("results") / scenario.name
+    check_output_dir(out, overwrite=args.force)
+    try:
+        result = run_grasp(scenario)
+    except SimulationDivergedError as diverged:
+        write_grasp_results(diverged.result, out, overwrite=args.force)
+        print(f"admittance: error: {diverged} (partial, failed result in {out}/)", file=sys.stderr)
+        return EXIT_RUN_FAILED
+    write_grasp_results(result, out, overwrite=args.force)
+    print(grasp_summary(result))
+    print(f"wrote {out}/: timeseries.csv, metrics.json, scenario.yaml, {GRASP_FIGURE}")
+    if args.meshcat_html:
+        from admittance.diagrams.grasp_replay import write_grasp_meshcat_replay
+
+        print(f"wrote {write_grasp_meshcat_replay(result, args.meshcat_html)} (Meshcat replay)")
+    return 0
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
+    from admittance.diagrams.grasp_scenario import GraspScenario
     from admittance.diagrams.report import summary, write_results
     from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
 
     scenario = load_scenario(args.scenario, args.overrides)
+    if isinstance(scenario, GraspScenario):
+        return _cmd_simulate_grasp(args, scenario)
     out = Path(args.out) if args.out else Path("results") / scenario.name
     check_output_dir(out, overwrite=args.force)
     try:
@@ -79,13 +120,17 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 def _cmd_diagram(args: argparse.Namespace) -> int:
     from admittance.diagrams.closed_loop import BuildClosedLoop
+    from admittance.diagrams.grasp import BuildGrasp
+    from admittance.diagrams.grasp_scenario import GraspScenario
     from admittance.diagrams.visualization import write_diagram_picture
 
     scenario = load_scenario(args.scenario, args.overrides)
     suffix = Path(args.out).suffix.lower()
     if suffix not in (".svg", ".png", ".dot"):
         raise ScenarioError(f"--out {args.out}: unsupported picture format; use .svg, .png or .dot")
-    loop = BuildClosedLoop(scenario)
+    loop = (
+        BuildGrasp(scenario) if isinstance(scenario, GraspScenario) else BuildClosedLoop(scenario)
+    )
     print(f"wrote {write_diagram_picture(loop.diagram, args.out)}")
     return 0
 
@@ -95,7 +140,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
     from admittance.diagrams.bench import format_benchmark, run_benchmark
 
-    scenario = load_scenario(args.scenario, args.overrides)
+    scenario = _arm_scenario(args)
     if args.repeat < 1:
         raise ScenarioError(f"--repeat {args.repeat}: must be an integer >= 1")
     report = run_benchmark(scenario, repeat=args.repeat)
@@ -120,7 +165,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
                 f"--controllers: {kind!r} is not a controller; allowed: "
                 + ", ".join(CONTROLLER_KINDS)
             )
-    scenario = load_scenario(args.scenario, args.overrides)
+    scenario = _arm_scenario(args)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_compare"
     check_output_dir(out, overwrite=args.force)
     scenario, runs = compare_controllers(
@@ -134,10 +179,51 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _number_list(flag: str, text: str) -> list[float]:
+    try:
+        return [float(item) for item in text.split(",") if item.strip()]
+    except ValueError:
+        raise ScenarioError(f"{flag} {text!r}: expected a comma list of numbers") from None
+
+
+def _cmd_grasp_compare(args: argparse.Namespace) -> int:
+    import json
+
+    from admittance.diagrams.grasp_comparison import compare_grasps, format_grasp_table
+    from admittance.diagrams.grasp_scenario import GRASP_CONTROLLER_KINDS, GraspScenario
+    from admittance.diagrams.output import atomic_output_dir, json_safe
+
+    scenario = load_scenario(args.scenario, args.overrides)
+    if not isinstance(scenario, GraspScenario):
+        raise ScenarioError(f"scenario: '{args.scenario}' is not a grasp scenario (kind: grasp)")
+    out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_compare"
+    check_output_dir(out, overwrite=args.force)
+    controllers = (
+        [k.strip() for k in args.controllers.split(",")]
+        if args.controllers
+        else list(GRASP_CONTROLLER_KINDS)
+    )
+    rows = compare_grasps(
+        args.scenario,
+        args.overrides,
+        size_errors=_number_list("--size-errors", args.size_errors),
+        stiffness_errors=_number_list("--stiffness-errors", args.stiffness_errors),
+        controllers=controllers,
+        workers=args.workers,
+    )
+    table = format_grasp_table(rows)
+    print(table, end="")
+    with atomic_output_dir(out, overwrite=args.force) as staging:
+        (staging / "table.md").write_text(table)
+        (staging / "rows.json").write_text(json.dumps(json_safe(rows), indent=2) + "\n")
+    print(f"wrote {out}/: table.md, rows.json")
+    return 0
+
+
 def _cmd_stability(args: argparse.Namespace) -> int:
     from admittance.diagrams.stability_report import MapAxes, analyse, format_report, write_report
 
-    scenario = load_scenario(args.scenario, args.overrides)
+    scenario = _arm_scenario(args)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_stability"
     axes = MapAxes.quick() if args.quick else MapAxes()
     check_output_dir(out, overwrite=args.force)
@@ -151,6 +237,7 @@ def _cmd_stability(args: argparse.Namespace) -> int:
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from admittance.diagrams.sweep import SweepWorkerError, define_sweep, run_sweep
 
+    _arm_scenario(args)
     definition = define_sweep(
         args.scenario,
         args.overrides,
@@ -248,6 +335,35 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--out", help="output folder (default: results/<scenario>_compare)")
     compare.add_argument("--force", action="store_true", help="replace an existing --out folder")
     compare.set_defaults(handler=_cmd_compare)
+
+    grasp_compare = commands.add_parser(
+        "grasp-compare",
+        help="a grasp with position-only fingers against the paper's law, over brick size "
+        "and contact stiffness errors: held, crushed or dropped",
+    )
+    _add_scenario_arguments(grasp_compare)
+    grasp_compare.set_defaults(scenario="grasp_hold")
+    grasp_compare.add_argument(
+        "--size-errors",
+        default="-0.002,0,0.002",
+        metavar="M,...",
+        help="brick.size_error values, m (default -0.002,0,0.002)",
+    )
+    grasp_compare.add_argument(
+        "--stiffness-errors",
+        default="0.1,1,10",
+        metavar="R,...",
+        help="brick.stiffness_error values (default 0.1,1,10)",
+    )
+    grasp_compare.add_argument(
+        "--controllers", metavar="K,...", help="pid_only,optimal_admittance (default both)"
+    )
+    grasp_compare.add_argument("--workers", type=int, help="parallel runs (default: the cores)")
+    grasp_compare.add_argument("--out", help="output folder (default: results/<scenario>_compare)")
+    grasp_compare.add_argument(
+        "--force", action="store_true", help="replace an existing --out folder"
+    )
+    grasp_compare.set_defaults(handler=_cmd_grasp_compare)
 
     bench = commands.add_parser(
         "bench",

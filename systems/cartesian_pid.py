@@ -12,7 +12,11 @@ from pydrake.math import min as scalar_min
 from pydrake.systems.framework import LeafSystem_, ValueProducer
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from admittance.systems.planar_kinematics import PlanarFrameKinematics, wrap_angle
+from admittance.systems.planar_kinematics import (  # noqa: F401 (TASK_COORDINATES: docs)
+    TASK_COORDINATES,
+    PlanarFrameKinematics,
+    wrap_angle,
+)
 
 __all__ = ["CartesianPid", "CartesianPid_"]
 
@@ -35,12 +39,18 @@ def CartesianPid_(T):
             F_PID = Kp ec + Kd dec/dt + Ki integral(ec)                      (eq. 14)
             tau = clip(J(q)^T F_PID, -effort_limit, effort_limit)            (eq. 16)
 
-        X = (x, y, theta) of the controlled frame and J come from the plant's kinematics. The
-        angle error is wrapped to (-pi, pi]. The commanded velocity is whatever the caller
-        wires in; the project feeds dXd/dt only, so the admittance offset Xr is never
-        differentiated (its derivative would carry the force noise). Torques are clipped to
+        X and J come from the plant's kinematics. The task space is given at construction:
+        which coordinates of the controlled frame (TASK_COORDINATES: its origin's x, y, z and
+        its rotation theta about z) measured in which frame; by default (x, y, theta) in
+        world, the planar arm. A finger of a hand is controlled on (x, y) of its tip in a
+        frame fixed at the face it touches. The angle error is wrapped to (-pi, pi]. The
+        commanded velocity is whatever the caller wires in; the project feeds dXd/dt only,
+        so the admittance offset Xr is never differentiated (its derivative would carry the
+        force noise). Torques are clipped to
         the actuators' effort limits read from the plant (the URDF), and mapped to the
-        actuation vector through the plant's actuation matrix. There is no gravity
+        actuation vector through the plant's actuation matrix: a PID drives only the
+        actuators whose joints move its frame (a finger's PID gives zero torque to the other
+        fingers, whose PIDs' outputs are added to it). There is no gravity
         compensation, as in the paper: the integral term carries the arm's weight. While an
         actuator saturates, back-calculation anti-windup pulls the integral back (see
         ``_integral_rate``), so a blocked arm does not wind it up.
@@ -68,31 +78,42 @@ def CartesianPid_(T):
             kd: float | Sequence[float],
             ki: float | Sequence[float],
             period: float = 0.0,
+            coordinates: Sequence[str] = ("x", "y", "theta"),
+            expressed_in: str = "world",
             converter=None,
         ) -> None:
             """
             Args:
-                plant: finalized MultibodyPlant_[T] of the arm (fully actuated).
+                plant: finalized MultibodyPlant_[T] (the arm, or a hand with its object).
                 frame_name: the controlled frame (the fingertip contact point).
-                kp, kd, ki: diagonal gains on (x, y, theta): N/m, N s/m, N/(m s) and the
-                    rotational equivalents. kp > 0, kd >= 0, ki >= 0.
+                kp, kd, ki: diagonal gains on X: N/m, N s/m, N/(m s) and the rotational
+                    equivalents. kp > 0, kd >= 0, ki >= 0.
                 period: 0 for a continuous controller, otherwise its sampling period in s.
+                coordinates: the task vector X, names among TASK_COORDINATES.
+                expressed_in: the frame X is measured and expressed in (fixed in world).
             """
             LeafSystem_[T].__init__(self, converter=converter)
             self._plant = plant
             self._frame_name = frame_name
-            self._kinematics = PlanarFrameKinematics(plant, frame_name)
+            self._coordinates = tuple(coordinates)
+            self._expressed_in = expressed_in
+            self._kinematics = PlanarFrameKinematics(
+                plant, frame_name, coordinates=self._coordinates, expressed_in=expressed_in
+            )
+            size = self._kinematics.num_coordinates
+            self._size = size
+            self._angle_index = self._kinematics.angle_index
             num_positions = plant.num_positions()
             num_velocities = plant.num_velocities()
             num_actuators = plant.num_actuated_dofs()
-            if num_actuators != num_velocities:
+            if num_actuators < size:
                 raise ValueError(
-                    f"the Cartesian PID needs a fully actuated arm: {num_actuators} actuators "
-                    f"for {num_velocities} velocities"
+                    f"the Cartesian PID needs at least {size} actuators for its {size} task "
+                    f"coordinates; the plant has {num_actuators}"
                 )
-            self._kp = _gain_vector("kp", kp, 3, allow_zero=False)
-            self._kd = _gain_vector("kd", kd, 3, allow_zero=True)
-            self._ki = _gain_vector("ki", ki, 3, allow_zero=True)
+            self._kp = _gain_vector("kp", kp, size, allow_zero=False)
+            self._kd = _gain_vector("kd", kd, size, allow_zero=True)
+            self._ki = _gain_vector("ki", ki, size, allow_zero=True)
             if not (np.isfinite(period) and period >= 0):
                 raise ValueError(f"period must be >= 0 s (0 = continuous), got {period}")
             self._period = float(period)
@@ -114,15 +135,15 @@ def CartesianPid_(T):
             self._effort_limits = np.array(limits)
             self._effort_limits_list = self._effort_limits.tolist()
 
-            self.commanded_position_input = self.DeclareVectorInputPort("commanded_position", 3)
-            self.commanded_velocity_input = self.DeclareVectorInputPort("commanded_velocity", 3)
+            self.commanded_position_input = self.DeclareVectorInputPort("commanded_position", size)
+            self.commanded_velocity_input = self.DeclareVectorInputPort("commanded_velocity", size)
             self.estimated_state_input = self.DeclareVectorInputPort(
                 "estimated_state", num_positions + num_velocities
             )
             # The whole law (kinematics, torque and dz/dt) is computed once per context and
             # read by both the output and the state update: one Python evaluation of the
             # kinematics per derivative evaluation of the closed loop. The integral is the
-            # continuous state, or the first 3 discrete states of the sampled controller.
+            # continuous state, or the first `size` discrete states of the sampled one.
             self._law_cache = self.DeclareCacheEntry(
                 description="actuation and integral rate",
                 value_producer=ValueProducer(allocate=Value[object]().Clone, calc=self._CalcLaw),
@@ -139,7 +160,7 @@ def CartesianPid_(T):
                 },
             )
             if self._period == 0.0:
-                self.DeclareContinuousState(3)
+                self.DeclareContinuousState(size)
                 self.actuation_output = self.DeclareVectorOutputPort(
                     "actuation",
                     num_actuators,
@@ -147,8 +168,8 @@ def CartesianPid_(T):
                     prerequisites_of_calc={self._law_cache.ticket()},
                 )
             else:
-                # Discrete state: [integral of ec (3), held actuation (nu)].
-                self._state_index = self.DeclareDiscreteState(3 + num_actuators)
+                # Discrete state: [integral of ec (size), held actuation (nu)].
+                self._state_index = self.DeclareDiscreteState(size + num_actuators)
                 self.DeclarePeriodicDiscreteUpdateEvent(
                     period_sec=self._period, offset_sec=0.0, update=self._DiscreteUpdate
                 )
@@ -168,6 +189,8 @@ def CartesianPid_(T):
                 kd=other._kd,
                 ki=other._ki,
                 period=other._period,
+                coordinates=other._coordinates,
+                expressed_in=other._expressed_in,
                 converter=converter,
             )
 
@@ -181,6 +204,11 @@ def CartesianPid_(T):
             return self._period
 
         @property
+        def coordinates(self) -> tuple[str, ...]:
+            """The task coordinates, in the order of X and of the gains."""
+            return self._coordinates
+
+        @property
         def effort_limits(self) -> np.ndarray:
             return self._effort_limits.copy()
 
@@ -192,7 +220,7 @@ def CartesianPid_(T):
             else:
                 state = context.get_mutable_discrete_state(self._state_index)
                 value = np.array(state.CopyToVector())
-                value[:3] = integral
+                value[: self._size] = integral
                 state.SetFromVector(value)
 
         def cartesian_error(self, context) -> np.ndarray:
@@ -202,11 +230,20 @@ def CartesianPid_(T):
         def holding_integral(self, state, generalized_force) -> np.ndarray:
             """The integral at which, with zero error, the PID applies `generalized_force`.
 
-            Used to start the arm at rest held against gravity: solves J^T Ki z = tau.
+            Used to start the arm at rest held against gravity: solves J^T Ki z = tau (in
+            the least-squares sense over the actuated joints when J is not square; exact
+            when the frame's actuated joints can produce tau).
             """
             kinematics = self._kinematics
             kinematics.set_state(state)
-            wrench = np.linalg.solve(kinematics.jacobian().T, generalized_force)
+            jacobian = kinematics.jacobian()
+            if self._actuators_in_joint_order and jacobian.shape[0] == jacobian.shape[1]:
+                wrench = np.linalg.solve(jacobian.T, generalized_force)
+            else:
+                selection = self._actuation_from_generalized
+                wrench = np.linalg.lstsq(
+                    selection @ jacobian.T, selection @ generalized_force, rcond=None
+                )[0]
             if np.any(self._ki == 0):
                 raise ValueError("holding the arm through the integral needs ki > 0 on all axes")
             return wrench / self._ki
@@ -220,7 +257,8 @@ def CartesianPid_(T):
             pose = kinematics.pose()
             jacobian = kinematics.jacobian()
             error = self.commanded_position_input.Eval(context) - pose
-            error[2] = wrap_angle(error[2])
+            if self._angle_index is not None:
+                error[self._angle_index] = wrap_angle(error[self._angle_index])
             error_rate = (
                 self.commanded_velocity_input.Eval(context)
                 - jacobian @ state[kinematics.num_positions :]
@@ -228,7 +266,9 @@ def CartesianPid_(T):
             if self._period == 0.0:
                 integral = context.get_continuous_state_vector().CopyToVector()
             else:
-                integral = context.get_discrete_state(self._state_index).CopyToVector()[:3]
+                integral = context.get_discrete_state(self._state_index).CopyToVector()[
+                    : self._size
+                ]
             wrench = self._kp * error + self._kd * error_rate + self._ki * integral
             torque = jacobian.T @ wrench
             if not self._actuators_in_joint_order:
@@ -272,7 +312,7 @@ def CartesianPid_(T):
             to_wrench = np.linalg.pinv(self._actuation_from_generalized @ jacobian_value.T)
             wrench_excess = to_wrench @ excess
             rate = np.array(error, dtype=object if T is not float else float)
-            for i in range(3):
+            for i in range(self._size):
                 if self._ki[i] > 0:
                     rate[i] = error[i] + wrench_excess[i] / (self._ki[i] * self._tracking_time[i])
             return rate
@@ -286,7 +326,7 @@ def CartesianPid_(T):
             output.SetFromVector(self._law_cache.Eval(context)[0])
 
         def _DiscreteUpdate(self, context, discrete_state) -> None:
-            integral = context.get_discrete_state(self._state_index).CopyToVector()[:3]
+            integral = context.get_discrete_state(self._state_index).CopyToVector()[: self._size]
             torque, rate, _ = self._law_cache.Eval(context)
             discrete_state.get_mutable_vector(self._state_index).SetFromVector(
                 np.concatenate([integral + self._period * rate, torque])
@@ -294,7 +334,7 @@ def CartesianPid_(T):
 
         def _CalcSampledActuation(self, context, output) -> None:
             state = context.get_discrete_state(self._state_index).CopyToVector()
-            output.SetFromVector(state[3:])
+            output.SetFromVector(state[self._size :])
 
     return Impl
 
