@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from admittance.diagrams.cli import main
+from admittance.diagrams.app.cli import main
 from admittance.diagrams.grasp_scenario import GraspScenario
 from admittance.diagrams.scenario import Scenario, ScenarioError, load_scenario
 

@@ -22,7 +22,11 @@ import os
 import sys
 from pathlib import Path
 
-from admittance.diagrams.output import OutputExistsError, atomic_write_text, check_output_dir
+from admittance.diagrams.app.result_folder import (
+    OutputExistsError,
+    atomic_write_text,
+    check_output_dir,
+)
 from admittance.diagrams.scenario import ScenarioError, builtin_scenario_names, load_scenario
 
 DEFAULT_SCENARIO = "paper_stiffness_step"
@@ -69,7 +73,11 @@ def _arm_scenario(args: argparse.Namespace):
 
 
 def _cmd_simulate_grasp(args: argparse.Namespace, scenario) -> int:
-    from admittance.diagrams.grasp_report import GRASP_FIGURE, grasp_summary, write_grasp_results
+    from admittance.diagrams.app.grasp_results import (
+        GRASP_FIGURE,
+        grasp_summary,
+        write_grasp_results,
+    )
     from admittance.diagrams.grasp_simulation import run_grasp
     from admittance.diagrams.simulation import SimulationDivergedError
 
@@ -92,8 +100,8 @@ def _cmd_simulate_grasp(args: argparse.Namespace, scenario) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
+    from admittance.diagrams.app.simulate import summary, write_results
     from admittance.diagrams.grasp_scenario import GraspScenario
-    from admittance.diagrams.report import summary, write_results
     from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
 
     scenario = load_scenario(args.scenario, args.overrides)
@@ -138,7 +146,7 @@ def _cmd_diagram(args: argparse.Namespace) -> int:
 def _cmd_bench(args: argparse.Namespace) -> int:
     import json
 
-    from admittance.diagrams.bench import format_benchmark, run_benchmark
+    from admittance.diagrams.app.bench import format_benchmark, run_benchmark
 
     scenario = _arm_scenario(args)
     if args.repeat < 1:
@@ -154,7 +162,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from admittance.diagrams.compare import compare_controllers, format_table, write_comparison
+    from admittance.diagrams.app.compare import compare_controllers, format_table, write_comparison
     from admittance.diagrams.force_controllers import baseline_gains
     from admittance.diagrams.scenario import CONTROLLER_KINDS
 
@@ -189,9 +197,9 @@ def _number_list(flag: str, text: str) -> list[float]:
 def _cmd_grasp_compare(args: argparse.Namespace) -> int:
     import json
 
-    from admittance.diagrams.grasp_comparison import compare_grasps, format_grasp_table
+    from admittance.diagrams.app.grasp_compare import compare_grasps, format_grasp_table
+    from admittance.diagrams.app.result_folder import atomic_output_dir, json_safe
     from admittance.diagrams.grasp_scenario import GRASP_CONTROLLER_KINDS, GraspScenario
-    from admittance.diagrams.output import atomic_output_dir, json_safe
 
     scenario = load_scenario(args.scenario, args.overrides)
     if not isinstance(scenario, GraspScenario):
@@ -221,7 +229,12 @@ def _cmd_grasp_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_stability(args: argparse.Namespace) -> int:
-    from admittance.diagrams.stability_report import MapAxes, analyse, format_report, write_report
+    from admittance.diagrams.app.stability_report import (
+        MapAxes,
+        analyse,
+        format_report,
+        write_report,
+    )
 
     scenario = _arm_scenario(args)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_stability"
@@ -235,7 +248,7 @@ def _cmd_stability(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from admittance.diagrams.sweep import SweepWorkerError, define_sweep, run_sweep
+    from admittance.diagrams.app.sweep import SweepWorkerError, define_sweep, run_sweep
 
     _arm_scenario(args)
     definition = define_sweep(
