@@ -273,9 +273,12 @@ def run_grasp(scenario: GraspScenario, *, loop: GraspLoop | None = None) -> Gras
             f"the simulation failed at t = {context.get_time():.6g} s: {str(error).splitlines()[0]}"
         )
     wall_time = time.perf_counter() - start
-    result = _collect(loop, context, wall_time)
-    if scenario.time_step == 0:
-        result.steps = int(simulator.get_integrator().get_num_steps_taken())
+    steps = (
+        int(round(context.get_time() / scenario.time_step))
+        if scenario.time_step > 0
+        else int(simulator.get_integrator().get_num_steps_taken())
+    )
+    result = _collect(loop, context, wall_time, steps)
     if divergence:
         result.metrics["failed"] = True
         result.metrics["failure"] = divergence[-1]
@@ -284,7 +287,7 @@ def run_grasp(scenario: GraspScenario, *, loop: GraspLoop | None = None) -> Gras
     return result
 
 
-def _collect(loop: GraspLoop, context, wall_time: float) -> GraspResult:
+def _collect(loop: GraspLoop, context, wall_time: float, steps: int) -> GraspResult:
     scenario, plant = loop.scenario, loop.plant
 
     def logged(name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -331,7 +334,7 @@ def _collect(loop: GraspLoop, context, wall_time: float) -> GraspResult:
         brick_pose=brick_pose,
         joint_positions=q,
         wall_time=wall_time,
-        steps=int(round(float(sample_times[-1]) / scenario.time_step)) if count else 0,
+        steps=steps,
     )
     along_face = _along_face(loop, tip, brick_pose)
     result.metrics = compute_grasp_metrics(result)
