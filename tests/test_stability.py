@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 
-from admittance.diagrams.cli import main
+from admittance.diagrams.app.cli import main
 from admittance.diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium
 from admittance.diagrams.scenario import load_scenario
 from admittance.diagrams.simulation import run_scenario
