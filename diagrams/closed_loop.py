@@ -1,9 +1,14 @@
 """The paper's Fig. 1 as a Drake Diagram: arm, wall, sensor, optimal admittance and PID.
 
-Xd --(+)--> Xc --> CartesianPid --tau--> plant --state--> CompliantWall --F--> sensor
-      ^ Xr                                  ^  spatial force |                    |
-      +------- OptimalAdmittance <-- Fm ----+----------------+--------------------+
+Xd --(+)--> Xc --> CartesianPid --tau--> plant --state--> PlanarKinematics
+      ^ Xr              ^ X, dX/dt, J      ^ spatial force      | X, dX/dt, J
+      |                 +------------------|--------------------+
+      |                                CompliantWall <----------+
+      +------- OptimalAdmittance <-- Fm -- sensor <-- F --+
                       ^ Fr
+
+The fingertip's kinematics are computed once per evaluation and read by the PID and the
+wall; with the ideal sensor (the paper's simulation) Fm is the wall's F itself.
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ from admittance.systems.cartesian_pid import CartesianPid
 from admittance.systems.compliant_wall import CompliantWall
 from admittance.systems.desired_trajectory import DesiredTrajectory
 from admittance.systems.flexiforce import FlexiForceSensor
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PlanarFrameKinematics, PlanarKinematics
 from admittance.systems.sensor_fault import SensorFault
 
 __all__ = [
@@ -54,7 +59,10 @@ class ClosedLoop:
     trajectory: DesiredTrajectory
     pid: CartesianPid
     wall: CompliantWall
-    sensor: FlexiForceSensor
+    # The FlexiForce chain (None for the ideal sensor, whose reading is the true force).
+    sensor: FlexiForceSensor | None
+    # X, dX/dt and J of the fingertip, read by the PID and the wall.
+    kinematics: PlanarKinematics
     # The force controller of scenario.controller_kind (None for pid_only).
     admittance: object | None
     random_sources: list[RandomSource] = field(default_factory=list)
@@ -130,6 +138,10 @@ def BuildClosedLoop(
     )
     trajectory.set_name("desired_trajectory")
 
+    kinematics = builder.AddSystem(PlanarKinematics(plant, frame_name=frame))
+    kinematics.set_name("fingertip_kinematics")
+    builder.Connect(plant.get_state_output_port(), kinematics.estimated_state_input)
+
     wall_config = scenario.wall
     wall = builder.AddSystem(
         CompliantWall(
@@ -147,26 +159,31 @@ def BuildClosedLoop(
         )
     )
     wall.set_name("compliant_wall")
-    builder.Connect(plant.get_state_output_port(), wall.estimated_state_input)
+    builder.Connect(kinematics.kinematics_output, wall.kinematics_input)
     builder.Connect(wall.applied_spatial_force_output, plant.get_applied_spatial_force_input_port())
 
     sensor_config = scenario.sensor
-    sensor = builder.AddSystem(
-        FlexiForceSensor(kind=sensor_config.kind, filter_cutoff_hz=sensor_config.filter_cutoff)
-    )
-    sensor.set_name("flexiforce_sensor")
-    builder.Connect(wall.contact_force_output, sensor.contact_force_input)
-    measured_force_output = sensor.measured_force_output
+    sensor = None
+    if sensor_config.kind == "ideal":
+        # The ideal measurement is the true force: a wire, no system to evaluate.
+        measured_force_output = wall.contact_force_output
+    else:
+        sensor = builder.AddSystem(
+            FlexiForceSensor(kind=sensor_config.kind, filter_cutoff_hz=sensor_config.filter_cutoff)
+        )
+        sensor.set_name("flexiforce_sensor")
+        builder.Connect(wall.contact_force_output, sensor.contact_force_input)
+        measured_force_output = sensor.measured_force_output
     sensor_faults = [
         (f.kind, f.start, f.end, f.value) for f in scenario.faults if f.kind.startswith("sensor_")
     ]
     if sensor_faults:
         fault = builder.AddSystem(SensorFault(sensor_faults))
         fault.set_name("sensor_fault")
-        builder.Connect(sensor.measured_force_output, fault.measured_force_input)
+        builder.Connect(measured_force_output, fault.measured_force_input)
         measured_force_output = fault.reported_force_output
     random_sources = []
-    noisy = sensor_config.kind != "ideal" and sensor_config.noise_std > 0 and not analysis
+    noisy = sensor is not None and sensor_config.noise_std > 0 and not analysis
     if noisy:
         source = builder.AddSystem(
             RandomSource(RandomDistribution.kGaussian, 1, sensor_config.noise_period)
@@ -177,7 +194,7 @@ def BuildClosedLoop(
         gain.set_name("noise_std")
         builder.Connect(source.get_output_port(0), gain.get_input_port())
         builder.Connect(gain.get_output_port(), sensor.noise_input)
-    else:
+    elif sensor is not None:
         zero = builder.AddSystem(ConstantVectorSource([0.0]))
         zero.set_name("no_noise")
         builder.Connect(zero.get_output_port(), sensor.noise_input)
@@ -194,7 +211,7 @@ def BuildClosedLoop(
         )
     )
     pid.set_name("cartesian_pid")
-    builder.Connect(plant.get_state_output_port(), pid.estimated_state_input)
+    builder.Connect(kinematics.kinematics_output, pid.kinematics_input)
     builder.Connect(pid.actuation_output, plant.get_actuation_input_port())
     builder.Connect(trajectory.desired_velocity_output, pid.commanded_velocity_input)
 
@@ -259,6 +276,7 @@ def BuildClosedLoop(
         pid=pid,
         wall=wall,
         sensor=sensor,
+        kinematics=kinematics,
         admittance=admittance,
         random_sources=random_sources,
         loggers=loggers,
@@ -400,7 +418,14 @@ def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
         loop.pid.set_integral(pid_context, loop.pid.holding_integral(state, -gravity))
 
     if hasattr(loop.admittance, "set_initial_force_error"):
-        measured = loop.sensor.measured_force_output.Eval(loop.sensor.GetMyContextFromRoot(context))
+        # The reading before any injected sensor fault: the sensor's, or the true force.
+        reader = loop.sensor if loop.sensor is not None else loop.wall
+        reading = (
+            loop.sensor.measured_force_output
+            if loop.sensor is not None
+            else loop.wall.contact_force_output
+        )
+        measured = reading.Eval(reader.GetMyContextFromRoot(context))
         admittance_context = loop.admittance.GetMyMutableContextFromRoot(context)
         loop.admittance.set_initial_force_error(
             admittance_context, np.array([scenario.force_reference]) - measured

@@ -78,6 +78,7 @@ from admittance.systems.cartesian_pid import CartesianPid
 from admittance.systems.contact_force_sensor import ContactForceSensor
 from admittance.systems.flexiforce import FlexiForceSensor
 from admittance.systems.optimal_admittance import OptimalAdmittance
+from admittance.systems.planar_kinematics import PlanarKinematics
 
 __all__ = [
     "BRICK_URL",
@@ -145,6 +146,7 @@ class FingerLoop:
     """One finger's systems."""
 
     name: str
+    kinematics: PlanarKinematics
     pid: CartesianPid
     sensor: FlexiForceSensor
     admittance: OptimalAdmittance | None
@@ -374,6 +376,18 @@ def _AddFinger(
         zero.set_name(f"{finger}_no_noise")
         builder.Connect(zero.get_output_port(), sensor.noise_input)
 
+    # The tip's (x, y) in its face's frame, its rate and Jacobian, once per evaluation.
+    kinematics = builder.AddSystem(
+        PlanarKinematics(
+            plant,
+            frame_name=tip_centre_frame(finger),
+            coordinates=FINGER_COORDINATES,
+            expressed_in=contact_frame(finger),
+        )
+    )
+    kinematics.set_name(f"{finger}_tip_kinematics")
+    builder.Connect(plant.get_state_output_port(), kinematics.estimated_state_input)
+
     pid_config = scenario.pid
     pid = builder.AddSystem(
         CartesianPid(
@@ -388,7 +402,7 @@ def _AddFinger(
         )
     )
     pid.set_name(f"{finger}_pid")
-    builder.Connect(plant.get_state_output_port(), pid.estimated_state_input)
+    builder.Connect(kinematics.kinematics_output, pid.kinematics_input)
     builder.Connect(split.get_output_port(1), pid.commanded_velocity_input)
 
     reference = builder.AddSystem(
@@ -423,6 +437,7 @@ def _AddFinger(
         builder.Connect(split.get_output_port(0), pid.commanded_position_input)
     return FingerLoop(
         name=finger,
+        kinematics=kinematics,
         pid=pid,
         sensor=sensor,
         admittance=admittance,

@@ -51,30 +51,64 @@ def test_python_callbacks_are_counted(report):
     loop = report["closed_loop"]
     assert python["callback_calls"] > loop["derivative_evaluations"]
     # Every derivative evaluation calls DoCalcTimeDerivatives of each Python system with
-    # continuous state (PID, admittance, sensor) and the wall's force at least once.
+    # continuous state (admittance, sensor) and the wall's force at least once.
     assert python["callbacks_per_derivative_evaluation"] >= 4
     assert 0 < python["time_in_callbacks"] < python["profiled_wall_time"]
     assert 0 < python["fraction_of_wall_time"] < 1
     names = {entry["name"] for entry in python["callbacks"]}
-    assert "cartesian_pid.DoCalcTimeDerivatives" in names
+    assert "optimal_admittance.DoCalcTimeDerivatives" in names
+    # Systems inside a subdiagram are named after both (the PID's law).
+    assert "cartesian_pid/law._CalcLaw" in names
     assert any(name.startswith("compliant_wall.") for name in names)
     for entry in python["callbacks"]:
         assert entry["calls"] > 0 and entry["time"] >= 0 and entry["mean_us"] >= 0
     derivatives = next(
-        e for e in python["callbacks"] if e["name"] == "cartesian_pid.DoCalcTimeDerivatives"
+        e for e in python["callbacks"] if e["name"] == "optimal_admittance.DoCalcTimeDerivatives"
     )
     assert derivatives["calls"] == loop["derivative_evaluations"]
 
 
+def test_python_callbacks_per_evaluation(report):
+    # Per derivative evaluation of this loop (FlexiForce sensor): the fingertip kinematics
+    # 1, the wall 2 (its force and the plant's spatial force), the sensor 2 (its output and
+    # its filter's derivative), the PID 1 (its law; the integral is Drake's Integrator), the
+    # admittance 3 (law, output, derivative): 9, plus the contexts that only the loggers
+    # see (about 5 %). Before the PID's integral moved to C++, the trajectory to Drake's
+    # Sine and the kinematics were shared, the same loop made 12.5.
+    assert report["python"]["callbacks_per_derivative_evaluation"] <= 9 * 1.1
+
+
 def test_each_law_runs_once_per_evaluation(report):
-    # The PID's kinematics and torque, and the admittance law, are cached per context and
-    # read by both the output and the derivatives: one run per derivative evaluation, plus
-    # the few contexts that only the loggers and monitor see (about 5 %). Without the
-    # cache they would run twice.
+    # The fingertip kinematics (read by the PID and the wall), the PID's law (read by the
+    # plant and the integral) and the admittance law (cached, read by its output and its
+    # derivative) run once per derivative evaluation, plus the few contexts that only the
+    # loggers and monitor see (about 5 %). Computed by each reader, they would run twice.
     calls = {entry["name"]: entry["calls"] for entry in report["python"]["callbacks"]}
     evaluations = report["closed_loop"]["derivative_evaluations"]
-    for law in ("cartesian_pid._CalcLaw", "optimal_admittance._CalcContinuousLaw"):
+    for law in (
+        "fingertip_kinematics._CalcGenerated",
+        "cartesian_pid/law._CalcLaw",
+        "optimal_admittance._CalcContinuousLaw",
+    ):
         assert evaluations <= calls[law] <= 1.2 * evaluations, law
+
+
+def test_sampled_controllers_run_only_at_their_samples():
+    # The sampled PID and admittance hold their outputs as discrete states that the output
+    # ports read directly: their laws run once per sample (1 kHz over 50 ms: the 50 samples
+    # at t = 0 to 49 ms, as the 30 s run makes 30,000) and never between samples, whatever
+    # the integrator evaluates.
+    report = run_benchmark(load_scenario("digital_controller", ["duration=0.05"]), repeat=1)
+    calls = {entry["name"]: entry["calls"] for entry in report["python"]["callbacks"]}
+    assert report["closed_loop"]["derivative_evaluations"] > 200
+    assert calls["cartesian_pid/law._DiscreteUpdate"] == 50
+    assert calls["optimal_admittance._DiscreteUpdate"] == 50
+    assert not [
+        name
+        for name in calls
+        if name.startswith(("cartesian_pid", "optimal_admittance._Calc"))
+        and "_DiscreteUpdate" not in name
+    ]
 
 
 def test_floor_stays_put_and_is_cheaper(report):

@@ -33,9 +33,15 @@ def eq18(q):
     return np.array([x, y, a3]), np.array([jx, jy, [1.0, 1.0, 1.0]])
 
 
+def eq18_kinematics(q, v):
+    """The PID's ``kinematics`` input [X; J v; J row by row], from eq. 18 by hand."""
+    X, J = eq18(q)
+    return np.concatenate([X, J @ v, J.reshape(-1)])
+
+
 def _pid_context(pid, q, v, commanded, commanded_rate, integral):
     context = pid.CreateDefaultContext()
-    pid.estimated_state_input.FixValue(context, np.concatenate([q, v]))
+    pid.kinematics_input.FixValue(context, eq18_kinematics(q, v))
     pid.commanded_position_input.FixValue(context, commanded)
     pid.commanded_velocity_input.FixValue(context, commanded_rate)
     pid.set_integral(context, integral)
@@ -132,9 +138,10 @@ def test_sampled_pid_holds_its_torque(arm_plant):
     X, J = eq18(q)
     context = _pid_context(pid, q, np.zeros(3), X + [1e-3, 0, 0], np.zeros(3), np.zeros(3))
     np.testing.assert_allclose(pid.actuation_output.Eval(context), 0.0)  # nothing latched yet
-    updated = pid.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
-    np.testing.assert_allclose(updated[:3], [1e-6, 0, 0], atol=1e-15)  # integral += h ec
-    np.testing.assert_allclose(updated[3:], J.T @ [2.5, 0, 0], atol=1e-9)
+    updated = pid.EvalUniquePeriodicDiscreteUpdate(context)
+    integral, held = (updated.get_vector(group).CopyToVector() for group in (0, 1))
+    np.testing.assert_allclose(integral, [1e-6, 0, 0], atol=1e-15)  # integral += h ec
+    np.testing.assert_allclose(held, J.T @ [2.5, 0, 0], atol=1e-9)
 
 
 def test_autodiff_conversion_gives_the_jacobian_stiffness(arm_plant):
@@ -142,11 +149,12 @@ def test_autodiff_conversion_gives_the_jacobian_stiffness(arm_plant):
     q = np.array([-0.45, 1.66, 0.36])
     X, J = eq18(q)
     context = pid.CreateDefaultContext()
-    pid.estimated_state_input.FixValue(context, [AutoDiffXd(v) for v in np.r_[q, 0, 0, 0]])
+    kinematics = eq18_kinematics(q, np.zeros(3))
+    pid.GetInputPort("kinematics").FixValue(context, [AutoDiffXd(k) for k in kinematics])
     commanded = [AutoDiffXd(X[i], np.eye(3)[i]) for i in range(3)]
-    pid.commanded_position_input.FixValue(context, commanded)
-    pid.commanded_velocity_input.FixValue(context, [AutoDiffXd(0.0, np.zeros(3))] * 3)
-    torque = pid.actuation_output.Eval(context)
+    pid.GetInputPort("commanded_position").FixValue(context, commanded)
+    pid.GetInputPort("commanded_velocity").FixValue(context, [AutoDiffXd(0.0, np.zeros(3))] * 3)
+    torque = pid.GetOutputPort("actuation").Eval(context)
     gradient = np.array([t.derivatives() for t in torque])
     np.testing.assert_allclose(gradient, J.T @ np.diag(KP), atol=1e-9)
 

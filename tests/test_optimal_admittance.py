@@ -97,9 +97,11 @@ def test_sampled_law_latches_and_integrates():
     assert not block.HasDirectFeedthrough(
         block.measured_force_input.get_index(), block.reference_offset_output.get_index()
     )
-    updated = block.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
-    # z[k+1] = 0.2 + 0.001 * 1; Xr[k] = 0.025 * (0.2 + 0.1 * (1 - 5)) = -0.005.
-    np.testing.assert_allclose(updated, [0.201, -0.005], atol=1e-15)
+    updated = block.EvalUniquePeriodicDiscreteUpdate(context)
+    integral, held = (updated.get_vector(group).CopyToVector() for group in (0, 1))
+    # z[k+1] = 0.2 + 0.001 * 1; Xr[k] = 0.025 * (0.2 + 0.1 * (1 - 5)) = -0.005 on axis x.
+    np.testing.assert_allclose(integral, [0.201], atol=1e-15)
+    np.testing.assert_allclose(held, [-0.005, 0.0, 0.0], atol=1e-15)
 
 
 def test_continuous_law_feeds_through_the_force():

@@ -190,10 +190,22 @@ class _CallbackProfiler:
         self._patched.clear()
 
 
+def _systems(diagram: Diagram, prefix: str = ""):
+    """(name, system) of every system in `diagram`, inside its subdiagrams too.
+
+    A system inside a subdiagram is named after both, e.g. ``cartesian_pid/law``.
+    """
+    for system in diagram.GetSystems():
+        name = prefix + system.get_name()
+        yield name, system
+        if isinstance(system, Diagram):
+            yield from _systems(system, name + "/")
+
+
 def _python_system_classes(diagram: Diagram) -> set[type]:
     return {
         type(system)
-        for system in diagram.GetSystems()
+        for _, system in _systems(diagram)
         if not type(system).__module__.startswith("pydrake")
     }
 
@@ -205,7 +217,7 @@ def _profile_callbacks(scenario: Scenario) -> tuple[_Run, _CallbackProfiler, dic
     profiler.patch(classes)
     try:
         loop = BuildClosedLoop(scenario)
-        names = {id(system): system.get_name() for system in loop.diagram.GetSystems()}
+        names = {id(system): name for name, system in _systems(loop.diagram)}
         run = _advance(loop.diagram, scenario, lambda context: SetInitialConditions(loop, context))
     finally:
         profiler.restore()
