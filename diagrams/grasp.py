@@ -189,9 +189,7 @@ def _contact_properties(scenario: GraspScenario) -> ProximityProperties:
     return properties
 
 
-def _read_geometry(
-    plant, scene_graph, scenario: GraspScenario
-) -> tuple[float, np.ndarray, np.ndarray]:
+def _read_geometry(plant, scene_graph) -> tuple[float, np.ndarray, np.ndarray]:
     """(tip radius, tip sphere centre in the tip link, brick edges in y-z) from the models."""
     inspector = scene_graph.model_inspector()
     radius, offset, size = None, None, None
@@ -255,7 +253,7 @@ def AddHand(builder: DiagramBuilder, scenario: GraspScenario):
         plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(f"{finger}_base"), X_WB)
     plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("brick_base"))
 
-    radius, offset, size = _read_geometry(plant, scene_graph, scenario)
+    radius, offset, size = _read_geometry(plant, scene_graph)
     planned = size - scenario.brick.size_error
     frames = _face_frames(scenario, planned)
     for finger, X_WC in zip(FINGERS, frames, strict=True):

@@ -21,7 +21,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
-from pydrake.systems.framework import EventStatus
 
 from admittance.diagrams.grasp import (
     BRICK_BODY,
@@ -39,6 +38,7 @@ from admittance.diagrams.simulation import (
     SETTLE_BAND,
     STEADY_WINDOW,
     SimulationDivergedError,
+    _divergence_monitor,
 )
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
@@ -54,8 +54,6 @@ __all__ = [
 CRUSH_FACTOR = 10.0
 # A brick that sinks this far after the grasp settles is lost, m.
 DROP_LIMIT = 1e-3
-# A finger or brick speed above this is a diverging run (the fingers move at cm/s).
-DIVERGED_SPEED = 1e3
 
 
 @dataclass
@@ -217,25 +215,6 @@ def compute_grasp_metrics(result: GraspResult) -> dict:
             "brick_drop": max(0.0, float(np.interp(start, time, z) - np.min(z[after]))),
         }
     return metrics
-
-
-def _divergence_monitor(loop: GraspLoop, found: list):
-    plant = loop.plant
-    num_positions = plant.num_positions()
-
-    def monitor(root_context):
-        state = plant.GetPositionsAndVelocities(plant.GetMyContextFromRoot(root_context))
-        if not np.all(np.isfinite(state)):
-            found.append(f"the plant state is not finite at t = {root_context.get_time():.6g} s")
-        elif np.max(np.abs(state[num_positions:])) > DIVERGED_SPEED:
-            found.append(
-                f"a speed exceeds {DIVERGED_SPEED:g} at t = {root_context.get_time():.6g} s"
-            )
-        else:
-            return EventStatus.Succeeded()
-        return EventStatus.ReachedTermination(None, found[-1])
-
-    return monitor
 
 
 def run_grasp(scenario: GraspScenario, *, loop: GraspLoop | None = None) -> GraspResult:

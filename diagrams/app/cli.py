@@ -72,45 +72,35 @@ def _arm_scenario(args: argparse.Namespace):
     return scenario
 
 
-def _cmd_simulate_grasp(args: argparse.Namespace, scenario) -> int:
-    from admittance.diagrams.app.grasp_results import (
-        GRASP_FIGURE,
-        grasp_summary,
-        write_grasp_results,
-    )
-    from admittance.diagrams.grasp_simulation import run_grasp
-    from admittance.diagrams.simulation import SimulationDivergedError
-
-    out = Path(args.out) if args.out else Path("results") / scenario.name
-    check_output_dir(out, overwrite=args.force)
-    try:
-        result = run_grasp(scenario)
-    except SimulationDivergedError as diverged:
-        write_grasp_results(diverged.result, out, overwrite=args.force)
-        print(f"admittance: error: {diverged} (partial, failed result in {out}/)", file=sys.stderr)
-        return EXIT_RUN_FAILED
-    write_grasp_results(result, out, overwrite=args.force)
-    print(grasp_summary(result))
-    print(f"wrote {out}/: timeseries.csv, metrics.json, scenario.yaml, {GRASP_FIGURE}")
-    if args.meshcat_html:
-        from admittance.diagrams.grasp_replay import write_grasp_meshcat_replay
-
-        print(f"wrote {write_grasp_meshcat_replay(result, args.meshcat_html)} (Meshcat replay)")
-    return 0
-
-
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from admittance.diagrams.app.simulate import summary, write_results
     from admittance.diagrams.grasp_scenario import GraspScenario
-    from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
+    from admittance.diagrams.simulation import SimulationDivergedError
 
     scenario = load_scenario(args.scenario, args.overrides)
     if isinstance(scenario, GraspScenario):
-        return _cmd_simulate_grasp(args, scenario)
+        from admittance.diagrams.app.grasp_results import (
+            GRASP_FIGURE,
+        )
+        from admittance.diagrams.app.grasp_results import (
+            grasp_summary as summary,
+        )
+        from admittance.diagrams.app.grasp_results import (
+            write_grasp_results as write_results,
+        )
+        from admittance.diagrams.grasp_replay import write_grasp_meshcat_replay as replay
+        from admittance.diagrams.grasp_simulation import run_grasp as run
+
+        figures = GRASP_FIGURE
+    else:
+        from admittance.diagrams.app.simulate import summary, write_results
+        from admittance.diagrams.simulation import run_scenario as run
+        from admittance.diagrams.visualization import write_meshcat_replay as replay
+
+        figures = "fig5-7 PNG"
     out = Path(args.out) if args.out else Path("results") / scenario.name
     check_output_dir(out, overwrite=args.force)
     try:
-        result = run_scenario(scenario)
+        result = run(scenario)
     except SimulationDivergedError as diverged:
         # Keep what was logged, marked failed (metrics.json: "failed": true).
         write_results(diverged.result, out, overwrite=args.force)
@@ -118,11 +108,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         return EXIT_RUN_FAILED
     write_results(result, out, overwrite=args.force)
     print(summary(result))
-    print(f"wrote {out}/: timeseries.csv, metrics.json, scenario.yaml, fig5-7 PNG")
+    print(f"wrote {out}/: timeseries.csv, metrics.json, scenario.yaml, {figures}")
     if args.meshcat_html:
-        from admittance.diagrams.visualization import write_meshcat_replay
-
-        print(f"wrote {write_meshcat_replay(result, args.meshcat_html)} (Meshcat replay)")
+        print(f"wrote {replay(result, args.meshcat_html)} (Meshcat replay)")
     return 0
 
 

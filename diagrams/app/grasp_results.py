@@ -11,9 +11,9 @@ import json
 from pathlib import Path
 
 import matplotlib.pyplot as plt
-import numpy as np
 
 from admittance.diagrams.app.result_folder import atomic_output_dir, json_safe
+from admittance.diagrams.app.simulate import write_csv
 from admittance.diagrams.grasp_plots import plot_grasp
 from admittance.diagrams.grasp_simulation import GraspResult, grasp_verdict_line
 from admittance.diagrams.scenario import scenario_to_yaml
@@ -21,12 +21,6 @@ from admittance.diagrams.scenario import scenario_to_yaml
 __all__ = ["GRASP_FIGURE", "grasp_summary", "write_grasp_results"]
 
 GRASP_FIGURE = "grasp_forces.png"
-
-
-def write_csv(result: GraspResult, path: Path) -> None:
-    columns = result.columns()
-    data = np.column_stack(list(columns.values()))
-    np.savetxt(path, data, delimiter=",", header=",".join(columns), comments="", fmt="%.9g")
 
 
 def write_grasp_results(result: GraspResult, out_dir: str | Path, overwrite: bool = True) -> Path:
