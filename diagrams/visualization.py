@@ -38,7 +38,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.tree import BodyIndex
 from pydrake.systems.framework import Diagram, DiagramBuilder
 
-from admittance.diagrams.closed_loop import AddPlanarArm
+from admittance.diagrams.closed_loop import AddScenarioArm
 from admittance.diagrams.simulation import SimulationResult
 
 __all__ = [
@@ -189,7 +189,7 @@ def write_meshcat_replay(result: SimulationResult, path: str | os.PathLike) -> P
     reference_length = scenario.force_reference * meters_per_newton
 
     builder = DiagramBuilder()
-    plant, scene_graph = AddPlanarArm(builder, scenario)
+    plant, scene_graph = AddScenarioArm(builder, scenario.arm)
     meshcat = _quiet_meshcat()
     visualizer = MeshcatVisualizer.AddToBuilder(
         builder,

@@ -6,13 +6,19 @@ written is the mark removed and the folder renamed into place (``os.replace``, a
 one file system). So a run killed at any moment leaves the previous complete result (or
 none) under ``<name>``, and at most a hidden staging folder that says it is incomplete; the
 next run into the same place removes staging folders whose process is gone.
+
+Each command writes its folder through :func:`result_folder`, whose :class:`ResultFolder`
+keeps the names of the files written, so that the command prints what it wrote and
+nothing else.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import shutil
+import signal
 import tempfile
 import uuid
 from collections.abc import Callable, Iterator
@@ -23,14 +29,20 @@ import numpy as np
 
 __all__ = [
     "OutputExistsError",
+    "ResultFolder",
     "atomic_output_dir",
     "atomic_write",
     "atomic_write_text",
     "check_output_dir",
     "json_safe",
+    "result_folder",
 ]
 
 INCOMPLETE_MARK = "INCOMPLETE"
+
+# The folders this process has moved into place, in order (an interrupted command names
+# those it completed).
+completed_folders: list[Path] = []
 
 
 class OutputExistsError(FileExistsError):
@@ -71,6 +83,16 @@ def _remove_stale_staging(out_dir: Path) -> None:
 
 
 @contextmanager
+def _sigint_held_back() -> Iterator[None]:
+    """SIGINT is blocked inside (a Ctrl-C is delivered when the block ends)."""
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+@contextmanager
 def atomic_output_dir(out_dir: str | Path, overwrite: bool = True) -> Iterator[Path]:
     """Yields a staging folder next to `out_dir`; on success it replaces `out_dir`.
 
@@ -92,17 +114,60 @@ def atomic_output_dir(out_dir: str | Path, overwrite: bool = True) -> Iterator[P
     )
     try:
         yield staging
-        mark.unlink()
-        if out_dir.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old.", dir=out_dir.parent))
-            os.replace(out_dir, old / out_dir.name)
-            os.replace(staging, out_dir)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(staging, out_dir)
+        # Ctrl-C waits until the folder is in place and recorded, so that an interrupted
+        # command knows whether its result was written.
+        with _sigint_held_back():
+            mark.unlink()
+            if out_dir.exists():
+                old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old.", dir=out_dir.parent))
+                os.replace(out_dir, old / out_dir.name)
+                os.replace(staging, out_dir)
+                shutil.rmtree(old, ignore_errors=True)
+            else:
+                os.replace(staging, out_dir)
+            completed_folders.append(out_dir)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
+
+
+class ResultFolder:
+    """The staging folder of a result being written, and the names of the files written."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.names: list[str] = []
+
+    def write_with(self, name: str, write: Callable[[Path], None]) -> None:
+        """`write(path)` writes the file `name`."""
+        write(self.path / name)
+        self.names.append(name)
+
+    def write_text(self, name: str, text: str) -> None:
+        self.write_with(name, lambda path: path.write_text(text))
+
+    def write_json(self, name: str, data) -> None:
+        """`data` as indented JSON, numpy scalars as numbers and non-finite floats as null."""
+        self.write_text(name, json.dumps(json_safe(data), indent=2) + "\n")
+
+    def write_figure(self, name: str, figure, dpi: int = 110) -> None:
+        """Saves a matplotlib figure as `name` (PNG) and closes it."""
+        import matplotlib.pyplot as plt
+
+        figure.tight_layout()
+        self.write_with(name, lambda path: figure.savefig(path, dpi=dpi))
+        plt.close(figure)
+
+    def describe(self, out_dir: str | Path) -> str:
+        """``wrote DIR/: name, name, ...`` for the terminal."""
+        return f"wrote {out_dir}/: {', '.join(self.names)}"
+
+
+@contextmanager
+def result_folder(out_dir: str | Path, overwrite: bool = True) -> Iterator[ResultFolder]:
+    """:func:`atomic_output_dir` with a :class:`ResultFolder` to write into."""
+    with atomic_output_dir(out_dir, overwrite=overwrite) as staging:
+        yield ResultFolder(staging)
 
 
 def json_safe(value):
