@@ -85,3 +85,21 @@ def test_no_module_holds_more_than_one_topic(folder):
         path.name: len(path.read_text().splitlines()) for path in (REPOSITORY / folder).glob("*.py")
     }
     assert lengths and {n: k for n, k in lengths.items() if k > MAX_MODULE_LINES} == {}
+
+
+def test_the_command_line_loads_every_drake_module_the_project_imports():
+    """`admittance` loads Drake's extension modules with Ctrl-C held back (a Ctrl-C inside
+    their C++ initialization becomes ImportError); a module missing from its list would
+    load later, unprotected."""
+    from admittance.diagrams.app.cli import DRAKE_MODULES
+
+    imported = set()
+    for folder in ("systems", "diagrams", "urdf"):
+        for path in (REPOSITORY / folder).rglob("*.py"):
+            for node in ast.walk(ast.parse(path.read_text())):
+                if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("pydrake"):
+                    imported.add(node.module)
+                elif isinstance(node, ast.Import):
+                    imported.update(a.name for a in node.names if a.name.startswith("pydrake"))
+    assert "pydrake.systems.framework" in imported
+    assert imported <= set(DRAKE_MODULES), sorted(imported - set(DRAKE_MODULES))

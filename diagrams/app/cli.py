@@ -21,9 +21,12 @@ imported inside :func:`main`, so that a Ctrl-C while they load is handled like a
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import sys
 from pathlib import Path
+
+from admittance.diagrams.app.interrupts import sigint_held_back
 
 EXIT_RUN_FAILED = 1
 EXIT_INPUT_ERROR = 2
@@ -34,6 +37,28 @@ DEFAULT_SCENARIO = "paper_stiffness_step"
 _SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
 # The most timed runs `bench --repeat` takes (each one is a whole simulation).
 MAX_REPEAT = 100
+
+# The extension modules of Drake that the project imports (tests/test_layout.py checks the
+# list against the code). They load with Ctrl-C held back: their C++ initialization would
+# turn a KeyboardInterrupt into "ImportError: initialization failed".
+DRAKE_MODULES = (
+    "pydrake.autodiffutils",
+    "pydrake.common",
+    "pydrake.common.cpp_param",
+    "pydrake.common.value",
+    "pydrake.common.yaml",
+    "pydrake.geometry",
+    "pydrake.math",
+    "pydrake.multibody.math",
+    "pydrake.multibody.parsing",
+    "pydrake.multibody.plant",
+    "pydrake.multibody.tree",
+    "pydrake.symbolic",
+    "pydrake.systems.analysis",
+    "pydrake.systems.framework",
+    "pydrake.systems.primitives",
+    "pydrake.systems.scalar_conversion",
+)
 
 EXIT_STATUS = """\
 exit status:
@@ -428,10 +453,19 @@ def _interrupted() -> int:
     return EXIT_INTERRUPTED
 
 
-def _run(args: argparse.Namespace) -> int:
-    import matplotlib
+def _load_libraries() -> None:
+    """Drake, numpy and matplotlib (headless: figures go to files), Ctrl-C held back."""
+    with sigint_held_back():
+        for name in DRAKE_MODULES:
+            importlib.import_module(name)
+        import matplotlib
 
-    matplotlib.use("Agg")  # headless: figures go to files
+        matplotlib.use("Agg")
+        importlib.import_module("matplotlib.pyplot")
+
+
+def _run(args: argparse.Namespace) -> int:
+    _load_libraries()
     from admittance.diagrams.app.progress import Progress
     from admittance.diagrams.app.result_folder import OutputExistsError, completed_folders
     from admittance.diagrams.scenario import ScenarioError

@@ -18,7 +18,6 @@ import json
 import math
 import os
 import shutil
-import signal
 import tempfile
 import uuid
 from collections.abc import Callable, Iterator
@@ -26,6 +25,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
+
+from admittance.diagrams.app.interrupts import sigint_held_back
 
 __all__ = [
     "OutputExistsError",
@@ -83,16 +84,6 @@ def _remove_stale_staging(out_dir: Path) -> None:
 
 
 @contextmanager
-def _sigint_held_back() -> Iterator[None]:
-    """SIGINT is blocked inside (a Ctrl-C is delivered when the block ends)."""
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
-
-
-@contextmanager
 def atomic_output_dir(out_dir: str | Path, overwrite: bool = True) -> Iterator[Path]:
     """Yields a staging folder next to `out_dir`; on success it replaces `out_dir`.
 
@@ -116,7 +107,7 @@ def atomic_output_dir(out_dir: str | Path, overwrite: bool = True) -> Iterator[P
         yield staging
         # Ctrl-C waits until the folder is in place and recorded, so that an interrupted
         # command knows whether its result was written.
-        with _sigint_held_back():
+        with sigint_held_back():
             mark.unlink()
             if out_dir.exists():
                 old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old.", dir=out_dir.parent))

@@ -29,6 +29,7 @@ import time
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
 
+from admittance.diagrams.app.interrupts import sigint_held_back
 from admittance.diagrams.scenario import ScenarioError, load_scenario
 
 __all__ = [
@@ -170,25 +171,11 @@ def check_engine(engine: str, scheduler: str | None) -> None:
 def _worker_ignores_sigint() -> None:
     """Worker initializer: Ctrl-C is the parent's to handle (it stops the workers).
 
-    The worker started with SIGINT blocked (inherited from the parent, see _blocked_sigint):
+    The worker started with SIGINT blocked (inherited from the parent, see sigint_held_back):
     ignore it, then unblock, which drops a Ctrl-C that arrived while the worker started.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
-
-
-@contextlib.contextmanager
-def _blocked_sigint() -> Iterator[None]:
-    """SIGINT held back while worker processes start (they inherit the blocked mask); a
-    Ctrl-C in that window is delivered to the parent when the block ends."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 @contextlib.contextmanager
@@ -231,7 +218,7 @@ def _run_local(function: Callable, tasks: list, workers: int, on_result: Callabl
         initializer=_worker_ignores_sigint,
     )
     try:
-        with _blocked_sigint():  # submit starts the workers
+        with sigint_held_back():  # submit starts the workers, which inherit the block
             futures = [executor.submit(function, task) for task in tasks]
         for future in concurrent.futures.as_completed(futures):
             on_result(future.result())
