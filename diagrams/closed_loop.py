@@ -45,6 +45,7 @@ from admittance.systems.planar_kinematics import PlanarFrameKinematics
 from admittance.systems.sensor_fault import SensorFault
 
 __all__ = [
+    "CheckScenarioStarts",
     "ClosedLoop",
     "AddPlanarArm",
     "AddScenarioArm",
@@ -412,32 +413,76 @@ def SolvePlanarInverseKinematics(
     raise ValueError(f"the pose {target.tolist()} is not reachable from the seed {guess.tolist()}")
 
 
-def CheckTrajectoryReachable(loop: ClosedLoop, samples: int = 16) -> None:
-    """Rejects a desired trajectory the arm cannot reach, naming the point.
+def _joint_speeds(loop: ClosedLoop, positions: np.ndarray, cartesian_velocity) -> np.ndarray:
+    """Joint speeds that move the fingertip at `cartesian_velocity` (x, y, theta) from q."""
+    kinematics = PlanarFrameKinematics(loop.plant, loop.scenario.arm.fingertip_frame)
+    kinematics.set_state(np.concatenate([positions, np.zeros(loop.plant.num_velocities())]))
+    return np.linalg.lstsq(kinematics.jacobian(), np.asarray(cartesian_velocity), rcond=None)[0]
 
-    Samples Xd over one period of eq. 19 (and the pose pushed to the wall surface, which
-    the admittance block may ask for) and solves the inverse kinematics of each.
+
+def _beyond_velocity_limits(loop: ClosedLoop, speeds: np.ndarray) -> str | None:
+    """None, or the words of a message naming the speeds and the URDF's limits."""
+    limits = loop.plant.GetVelocityUpperLimits()
+    if np.all(np.abs(speeds) <= limits):
+        return None
+    needed = ", ".join(f"{abs(v):.3g}" for v in speeds)
+    allowed = ", ".join(f"{v:.3g}" for v in limits)
+    return f"joint speeds ({needed}) rad/s, beyond the URDF's velocity limits ({allowed}) rad/s"
+
+
+def CheckTrajectoryReachable(loop: ClosedLoop, samples: int = 16) -> None:
+    """Rejects a desired trajectory the arm cannot reach or cannot follow, naming the point.
+
+    Samples Xd over one period of eq. 19 and solves the inverse kinematics of each point;
+    at each, the joint speeds that follow dXd/dt must stay within the URDF's velocity
+    limits (an arm cannot follow a faster plan, and the integrator would crawl after it).
 
     Raises:
         ScenarioError: `trajectory.center` / `trajectory.amplitude` with the first point
-            out of reach.
+            out of reach; `trajectory.frequency` / `trajectory.amplitude` with the first
+            point too fast.
     """
     scenario = loop.scenario
     frequency = scenario.trajectory.frequency
     period = 1.0 / frequency if frequency > 0 else 0.0
     seed = scenario.arm.joint_guess
     for k in range(samples if period > 0 else 1):
-        point = loop.trajectory.position_at(k * period / samples)
+        time = k * period / samples
+        point = loop.trajectory.position_at(time)
+        where = ", ".join(f"{v:.4g}" for v in point)
         try:
             seed = SolvePlanarInverseKinematics(
                 loop.plant, scenario.arm.fingertip_frame, point, seed
             )
         except ValueError:
-            where = ", ".join(f"{v:.4g}" for v in point)
             raise ScenarioError(
                 f"trajectory.center, trajectory.amplitude: the desired point ({where}) is out "
                 "of the arm's reach"
             ) from None
+        too_fast = _beyond_velocity_limits(
+            loop, _joint_speeds(loop, seed, loop.trajectory.velocity_at(time))
+        )
+        if too_fast:
+            raise ScenarioError(
+                f"trajectory.frequency, trajectory.amplitude: following the desired motion "
+                f"at ({where}) needs {too_fast}"
+            )
+
+
+def _check_wall_speed_within_velocity_limits(loop: ClosedLoop, plant_context) -> None:
+    """Rejects a wall that moves faster than the arm can follow from its initial pose."""
+    wall = loop.scenario.wall
+    if wall.velocity == 0.0 or wall.motion_start >= loop.scenario.duration:
+        return
+    push = np.zeros(3)
+    push[WALL_NORMAL_AXIS] = wall.velocity
+    positions = loop.plant.GetPositions(plant_context)
+    too_fast = _beyond_velocity_limits(loop, _joint_speeds(loop, positions, push))
+    if too_fast:
+        raise ScenarioError(
+            f"wall.velocity: following the wall at {wall.velocity:g} m/s from the initial pose "
+            f"needs {too_fast}"
+        )
 
 
 def _check_force_within_effort_limits(loop: ClosedLoop, plant_context, gravity) -> None:
@@ -497,6 +542,7 @@ def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
 
     gravity = plant.CalcGravityGeneralizedForces(plant_context)
     _check_force_within_effort_limits(loop, plant_context, gravity)
+    _check_wall_speed_within_velocity_limits(loop, plant_context)
     state = plant.GetPositionsAndVelocities(plant_context)
     pid_context = loop.pid.GetMyMutableContextFromRoot(context)
     if np.all(loop.pid.gains["ki"] > 0):
@@ -508,3 +554,14 @@ def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
         loop.admittance.set_initial_force_error(
             admittance_context, np.array([scenario.force_reference]) - measured
         )
+
+
+def CheckScenarioStarts(scenario: Scenario) -> None:
+    """Raises ScenarioError if `scenario` cannot start: a pose or a plan out of reach, a
+    plan or a wall faster than the joints' velocity limits, a force beyond their efforts.
+
+    The checks of SetInitialConditions, on a loop built for them alone: for commands that
+    would otherwise find out only after their first stage.
+    """
+    loop = BuildClosedLoop(scenario)
+    SetInitialConditions(loop, loop.diagram.CreateDefaultContext())

@@ -11,13 +11,16 @@ what is allowed; nothing deeper than this module sees unvalidated values.
 
 # No "from __future__ import annotations": yaml_load_typed reads the real field types.
 
+import copy
 import dataclasses
 import difflib
+import functools
 import math
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import yaml  # PyYAML, which pydrake.common.yaml is built on
 from pydrake.common.yaml import yaml_dump_typed, yaml_load, yaml_load_typed
 from pydrake.systems.analysis import SimulatorConfig
 
@@ -104,6 +107,10 @@ FAULT_KINDS = (
     "wall_retract",
     "stiffness_jump",
 )
+
+
+# The fault kinds that read `value`.
+FAULT_KINDS_WITH_VALUE = ("sensor_stuck", "sensor_saturated", "wall_retract", "stiffness_jump")
 
 
 @dataclass
@@ -309,6 +316,30 @@ def _describe(kind) -> str:
     }.get(kind, getattr(kind, "__name__", str(kind)))
 
 
+# The fields a list entry must give: left out, they would silently take the dataclass's
+# default (a fault from 1 s to 1.5 s, a stiffness step to 1e5 N/m at 15 s).
+_ENTRY_FIELDS = {
+    StiffnessStep: ("time", "stiffness"),
+    FaultConfig: ("kind", "start", "end"),
+}
+_ENTRY_DESCRIPTIONS = {
+    StiffnessStep: "a stiffness step needs time (s) and stiffness (N/m)",
+    FaultConfig: (
+        "a fault needs kind, start and end (s), and value for " + ", ".join(FAULT_KINDS_WITH_VALUE)
+    ),
+}
+
+
+def _check_entry_complete(key: str, entry: dict, kind) -> None:
+    """Raises ScenarioError naming the first field that a list entry leaves out."""
+    required = list(_ENTRY_FIELDS.get(kind, ()))
+    if kind is FaultConfig and entry.get("kind") in FAULT_KINDS_WITH_VALUE:
+        required.append("value")
+    for name in required:
+        if name not in entry:
+            raise ScenarioError(f"{key}.{name}: missing; {_ENTRY_DESCRIPTIONS[kind]}")
+
+
 def _check_type(key: str, value, kind):
     """Returns `value` converted to `kind`, or raises ScenarioError naming `key`."""
     origin = typing.get_origin(kind)
@@ -326,6 +357,7 @@ def _check_type(key: str, value, kind):
                 raise ScenarioError(
                     f"{key}.{name}: unknown key; allowed: {', '.join(sorted(fields))}"
                 )
+        _check_entry_complete(key, value, kind)
         return {name: _check_type(f"{key}.{name}", v, fields[name]) for name, v in value.items()}
     if kind is bool:
         if isinstance(value, bool):
@@ -335,12 +367,16 @@ def _check_type(key: str, value, kind):
         raise ScenarioError(f"{key}: expected true or false, got {value!r}")
     if kind in (int, float):
         expected = "an integer" if kind is int else "a number"
+        if kind is int and isinstance(value, int) and not isinstance(value, bool):
+            return value  # exactly: a float holds integers exactly only up to 2**53
         number = None
         if not isinstance(value, bool):
             try:
                 number = float(value)
             except (TypeError, ValueError):
                 pass
+            except OverflowError:  # an integer beyond a float: out of every range
+                number = math.inf if value > 0 else -math.inf
         if number is None or math.isnan(number) or (kind is int and not number.is_integer()):
             raise ScenarioError(f"{key}: expected {expected}, got {value!r}")
         return int(number) if kind is int else number
@@ -366,8 +402,9 @@ def parse_value(text: str):
     if stripped[:1] in ("[", "{"):
         try:
             return yaml_load(data=f"value: {stripped}")["value"]
-        except RuntimeError as error:
-            raise ScenarioError(f"cannot parse {text!r}: {error}") from None
+        except (RuntimeError, yaml.YAMLError) as error:
+            problem = getattr(error, "problem", None) or str(error).splitlines()[0]
+            raise ScenarioError(f"cannot parse {text!r} as YAML: {problem}") from None
     for convert in (int, float):
         try:
             return convert(stripped)
@@ -387,7 +424,10 @@ def parse_overrides(overrides: typing.Sequence[str]) -> list[tuple[str, typing.A
         key, sep, value = text.partition("=")
         if not sep or not key.strip():
             raise ScenarioError(f"--set {text!r}: expected KEY=VALUE")
-        pairs.append((key.strip(), parse_value(value)))
+        try:
+            pairs.append((key.strip(), parse_value(value)))
+        except ScenarioError as error:
+            raise ScenarioError(f"{key.strip()}: {error}") from None
     return pairs
 
 
@@ -439,6 +479,90 @@ def builtin_scenario_names() -> list[str]:
     return sorted(p.stem for p in SCENARIO_DIR.glob("*.yaml"))
 
 
+def _kind_of(value) -> str:
+    if isinstance(value, list):
+        return "a list"
+    if isinstance(value, str):
+        return "a string"
+    return "a number" if isinstance(value, int | float) else type(value).__name__
+
+
+def _check_yaml_nodes(path: Path, text: str) -> None:
+    """Raises ScenarioError for a key given twice in one mapping (YAML keeps the last one,
+    silently) and for aliases (*name), which scenarios do not need."""
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError:
+        return  # yaml_load reports the syntax error with its line
+    visited = set()
+    nodes = [root] if root is not None else []
+    while nodes:
+        node = nodes.pop()
+        at = f"line {node.start_mark.line + 1}"
+        if id(node) in visited:
+            raise ScenarioError(
+                f"scenario: {path}: the value at {at} is repeated by an alias (*name); "
+                "scenario files take no YAML aliases: write the value out"
+            )
+        visited.add(id(node))
+        if isinstance(node, yaml.MappingNode):
+            seen = set()
+            for key, value in node.value:
+                if isinstance(key, yaml.ScalarNode):
+                    if key.value in seen:
+                        raise ScenarioError(
+                            f"scenario: {path} line {key.start_mark.line + 1}: key "
+                            f"{key.value!r} is given twice in the same mapping"
+                        )
+                    seen.add(key.value)
+                nodes += [key, value]
+        elif isinstance(node, yaml.SequenceNode):
+            nodes += node.value
+
+
+def _read_yaml(path: Path) -> dict:
+    """The mapping of scenario keys in the YAML file `path`, or one ScenarioError line."""
+    try:
+        status = path.stat()
+    except OSError as error:
+        raise ScenarioError(f"scenario: {path} cannot be read: {error.strerror}") from None
+    # A sweep loads the same file once per point: parse it once.
+    return copy.deepcopy(_parse_yaml(path, status.st_mtime_ns, status.st_size))
+
+
+@functools.lru_cache(maxsize=16)
+def _parse_yaml(path: Path, modified: int, size: int) -> dict:
+    try:
+        raw = path.read_bytes()
+    except OSError as error:
+        raise ScenarioError(f"scenario: {path} cannot be read: {error.strerror}") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise ScenarioError(
+            f"scenario: {path} is not UTF-8 text (byte 0x{raw[error.start]:02x} at offset "
+            f"{error.start})"
+        ) from None
+    _check_yaml_nodes(path, text)
+    try:
+        data = yaml_load(data=text) if text.strip() else None
+    except Exception as error:  # PyYAML's YAMLError (syntax) or pydrake's RuntimeError
+        where = getattr(error, "problem_mark", None)
+        at = f" at line {where.line + 1}, column {where.column + 1}" if where else ""
+        problem = getattr(error, "problem", None) or str(error).splitlines()[0]
+        raise ScenarioError(f"scenario: {path} is not valid YAML{at}: {problem}") from None
+    if data is None:
+        raise ScenarioError(
+            f"scenario: {path} holds no scenario keys; write the keys that differ from the "
+            "defaults, or {} for every default"
+        )
+    if not isinstance(data, dict):
+        raise ScenarioError(
+            f"scenario: {path} must hold a mapping of scenario keys, got {_kind_of(data)}"
+        )
+    return data
+
+
 def _read_source(source: str | Path | None) -> tuple[dict, str]:
     if source is None:
         return {}, "custom"
@@ -450,17 +574,7 @@ def _read_source(source: str | Path | None) -> tuple[dict, str]:
         raise ScenarioError(
             f"scenario: '{source}' is neither a built-in scenario ({names}) nor a YAML file"
         )
-    try:
-        data = yaml_load(filename=str(path))
-    except Exception as error:  # PyYAML's YAMLError (syntax) or pydrake's RuntimeError
-        where = getattr(error, "problem_mark", None)
-        at = f" at line {where.line + 1}, column {where.column + 1}" if where else ""
-        problem = getattr(error, "problem", None) or str(error).splitlines()[0]
-        raise ScenarioError(f"scenario: {path} is not valid YAML{at}: {problem}") from None
-    if data is None:
-        data = {}
-    if not isinstance(data, dict):
-        raise ScenarioError(f"scenario: {path} must hold a mapping of scenario keys")
+    data = _read_yaml(path)
     data.setdefault("name", path.stem)
     arm = data.get("arm")
     if isinstance(arm, dict) and isinstance(arm.get("urdf"), str):

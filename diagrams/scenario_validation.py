@@ -10,9 +10,13 @@ failed check raises ScenarioError with one line: ``<key>: must be <allowed>, got
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import re
 import typing
+
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import MultibodyPlant
 
 from admittance.diagrams.scenario import (
     CONTROLLER_KINDS,
@@ -22,10 +26,12 @@ from admittance.diagrams.scenario import (
     ScenarioError,
 )
 
-__all__ = ["MAX_STIFFNESS", "PID_GAINS", "RANGES", "Range", "validate"]
+__all__ = ["MAX_SEED", "MAX_STIFFNESS", "PID_GAINS", "RANGES", "Range", "validate"]
 
 # Stiffer than any contact this arm can make (steel on steel at this scale is ~1e9 N/m).
 MAX_STIFFNESS = 1e9
+# Drake's RandomGenerator (a 32-bit Mersenne twister) takes the seed modulo 2**32.
+MAX_SEED = 2**32 - 1
 
 _INTERVAL = re.compile(r"^([(\[])\s*(\S+),\s*(\S+)\s*([)\]])$")
 _BOUND = re.compile(r"^(>=|>|<=|<)\s*(\S+)$")
@@ -45,10 +51,17 @@ class Range:
     spec: str
     note: str = ""
     text: str | None = None
+    # 0 is allowed too (it switches the feature off: a continuous controller, no pacing).
+    or_zero: bool = False
 
     def allows(self, value: float) -> bool:
-        if not math.isfinite(value):
+        try:
+            if not math.isfinite(value):
+                return False
+        except OverflowError:  # an integer beyond any float
             return False
+        if self.or_zero and value == 0:
+            return True
         interval = _INTERVAL.match(self.spec)
         if interval:
             opening, low, high, closing = interval.groups()
@@ -74,16 +87,20 @@ class Range:
 # Every key that is one number in a range, in the order they are checked.
 RANGES: dict[str, Range] = {
     "duration": Range("(0, 1e5]", "s"),
-    "seed": Range(">= 0"),
+    # Drake's RandomGenerator keeps 32 bits of a seed: 2**32 would repeat seed 0.
+    "seed": Range(f"[0, {MAX_SEED}]", "(a 32-bit seed)"),
     "force_reference": Range("> 0", "N (compressive)"),
     "wall.position": Range("> 0", text="in front of the base (> 0 m along x)"),
     "wall.stiffness": Range(f"(0, {MAX_STIFFNESS:g}]", "N/m"),
     "wall.velocity": Range("[-1, 1]", "m/s"),
     "wall.motion_start": Range(">= 0", "s"),
-    "trajectory.frequency": Range(">= 0", "Hz"),
+    # The joint velocity limits bound it further (closed_loop.CheckTrajectoryReachable).
+    "trajectory.frequency": Range("[0, 100]", "Hz"),
     "admittance.gamma": Range("(0, 0.1]"),
     "admittance.alpha": Range("[0, 10]", "s"),
-    "admittance.period": Range(">= 0", "s (0 = continuous)"),
+    "admittance.period": Range(
+        ">= 1e-5", or_zero=True, text="0 (continuous) or >= 1e-5 s (a 100 kHz controller)"
+    ),
     "admittance.max_push": Range("(0, 0.5]", "m"),
     "admittance.max_retract": Range("(0, 0.5]", "m"),
     "admittance.force_bound_gain": Range("(0, 100]"),
@@ -93,13 +110,22 @@ RANGES: dict[str, Range] = {
     "controller.damping": Range("(0, 1e+06]"),
     "controller.adaptation_rate": Range("(0, 10000]"),
     "controller.stiffness": Range("[0, 1e6]", "N/m"),
-    "pid.period": Range(">= 0", "s (0 = continuous)"),
+    "pid.period": Range(
+        ">= 1e-5", or_zero=True, text="0 (continuous) or >= 1e-5 s (a 100 kHz controller)"
+    ),
     "sensor.noise_std": Range("[0, 100]", "N"),
     "sensor.noise_period": Range(">= 1e-5", "s (a 100 kHz ADC)"),
     "sensor.filter_cutoff": Range("(0, 1e6]", "Hz"),
-    "simulator.accuracy": Range("(0, 0.1]"),
-    "simulator.max_step_size": Range("> 0", "s"),
-    "logging.period": Range(">= 0", "s (0 = every step)"),
+    # Finer than 1e-8 the implicit integrator crawls (1e-10: ten times slower than 1e-8)
+    # or gives up at the start.
+    "simulator.accuracy": Range("[1e-8, 0.1]"),
+    "simulator.max_step_size": Range(">= 1e-6", "s"),
+    # A pace of the run relative to real time: a tiny one would never finish.
+    "simulator.target_realtime_rate": Range(
+        ">= 0.01", or_zero=True, text="0 (as fast as possible) or >= 0.01 (x real time)"
+    ),
+    # The metrics average over 1 s windows: at least ten samples in each.
+    "logging.period": Range("[1e-5, 0.1]", or_zero=True, text="0 (every step) or in [1e-5, 0.1] s"),
 }
 
 # The PID's gains, each axis.
@@ -209,10 +235,64 @@ def _check_choices(s: Scenario) -> None:
         s.sensor.kind,
     )
     _require(s.arm.urdf_path().is_file(), "arm.urdf", "an existing URDF file", s.arm.urdf)
+    _check_urdf(s.arm)
+    _require(
+        s.name not in ("", ".", "..") and not _NOT_IN_A_NAME.search(s.name),
+        "name",
+        "a file name (results/<name> is the default --out)",
+        s.name,
+    )
     _require_one_of(
         s.simulator.integration_scheme, "simulator.integration_scheme", INTEGRATION_SCHEMES
     )
     _require(s.simulator.start_time == 0.0, "simulator.start_time", "0", s.simulator.start_time)
+
+
+# A scenario's name is a folder name: no separator, no control character.
+_NOT_IN_A_NAME = re.compile(r"[/\\\x00-\x1f]")
+
+
+@functools.lru_cache(maxsize=16)
+def _urdf_problem(path: str, modified: int, size: int, fingertip_frame: str):
+    """(key, problem) of the URDF file `path` for the closed loop, or None if it is fine.
+
+    Drake parses it into a plant of its own; cached by the file's modification time and
+    size, so that a sweep's thousand points parse it once.
+    """
+    plant = MultibodyPlant(time_step=0.0)
+    try:
+        Parser(plant).AddModels(path)
+        plant.Finalize()
+    except RuntimeError as error:
+        message = str(error).splitlines()[0] if str(error) else type(error).__name__
+        detail = re.sub(r"^(.*?:\d+: )?error: ", "", message)  # "<file>:<line>: error: "
+        return "arm.urdf", f"{path} is not a URDF that Drake reads: {detail}"
+    velocities, actuators = plant.num_velocities(), plant.num_actuators()
+    if velocities < 3 or actuators != velocities:
+        return (
+            "arm.urdf",
+            f"must be a fully actuated arm of at least 3 joints (the PID drives x, y and theta "
+            f"of the fingertip), got {velocities} joint velocities and {actuators} actuators "
+            f"in {path}",
+        )
+    if not plant.HasFrameNamed(fingertip_frame):
+        return "arm.fingertip_frame", f"the URDF has no frame named '{fingertip_frame}'"
+    return None
+
+
+def _check_urdf(arm) -> None:
+    """The arm's URDF can be read, Drake parses it, and the PID can drive what it holds."""
+    path = arm.urdf_path()
+    try:
+        with path.open("rb") as file:
+            file.read(1)
+        status = path.stat()
+    except OSError as error:
+        raise ScenarioError(f"arm.urdf: {path} cannot be read: {error.strerror}") from None
+    problem = _urdf_problem(str(path), status.st_mtime_ns, status.st_size, arm.fingertip_frame)
+    if problem is not None:
+        key, message = problem
+        raise ScenarioError(f"{key}: {message}")
 
 
 def _check_relations(s: Scenario) -> None:

@@ -108,8 +108,7 @@ def _error(message: str) -> None:
 
 
 def _cmd_simulate(args: argparse.Namespace, progress) -> int:
-    from admittance.diagrams.app.formatting import number
-    from admittance.diagrams.app.result_folder import check_output_dir
+    from admittance.diagrams.app.result_folder import check_output_dir, check_writable
     from admittance.diagrams.app.simulate import summary, write_results
     from admittance.diagrams.scenario import load_scenario
     from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
@@ -117,9 +116,12 @@ def _cmd_simulate(args: argparse.Namespace, progress) -> int:
     scenario = load_scenario(args.scenario, args.overrides)
     out = Path(args.out) if args.out else Path("results") / scenario.name
     check_output_dir(out, overwrite=args.force)
-    progress(f"simulating {scenario.name}: {number(scenario.duration, ' s')}")
+    if args.meshcat_html:
+        check_writable(args.meshcat_html, "--meshcat-html")
     try:
-        result = run_scenario(scenario, progress=progress.simulation(scenario.duration))
+        result = run_scenario(
+            scenario, progress=progress.simulation(scenario.name, scenario.duration)
+        )
     except SimulationDivergedError as diverged:
         # Keep what was logged, marked failed (metrics.json: "failed": true).
         progress(f"writing the partial result to {out}/")
@@ -139,6 +141,7 @@ def _cmd_simulate(args: argparse.Namespace, progress) -> int:
 
 
 def _cmd_diagram(args: argparse.Namespace, progress) -> int:
+    from admittance.diagrams.app.result_folder import check_writable
     from admittance.diagrams.closed_loop import BuildClosedLoop
     from admittance.diagrams.scenario import ScenarioError, load_scenario
     from admittance.diagrams.visualization import write_diagram_picture
@@ -147,6 +150,7 @@ def _cmd_diagram(args: argparse.Namespace, progress) -> int:
     suffix = Path(args.out).suffix.lower()
     if suffix not in (".svg", ".png", ".dot"):
         raise ScenarioError(f"--out {args.out}: unsupported picture format; use .svg, .png or .dot")
+    check_writable(args.out)
     loop = BuildClosedLoop(scenario)
     print(f"wrote {write_diagram_picture(loop.diagram, args.out)}")
     return 0
@@ -156,7 +160,8 @@ def _cmd_bench(args: argparse.Namespace, progress) -> int:
     import json
 
     from admittance.diagrams.app.bench import format_benchmark, run_benchmark
-    from admittance.diagrams.app.result_folder import atomic_write_text
+    from admittance.diagrams.app.result_folder import atomic_write_text, check_writable
+    from admittance.diagrams.closed_loop import CheckScenarioStarts
     from admittance.diagrams.scenario import ScenarioError, load_scenario
 
     if not 1 <= args.repeat <= MAX_REPEAT:
@@ -165,6 +170,9 @@ def _cmd_bench(args: argparse.Namespace, progress) -> int:
             "whole simulation)"
         )
     scenario = load_scenario(args.scenario, args.overrides)
+    if args.json:
+        check_writable(args.json, "--json")
+    CheckScenarioStarts(scenario)
     report = run_benchmark(scenario, repeat=args.repeat, progress=progress)
     print(format_benchmark(report))
     if args.json:
@@ -230,12 +238,14 @@ def _cmd_stability(args: argparse.Namespace, progress) -> int:
         format_report,
         write_report,
     )
+    from admittance.diagrams.closed_loop import CheckScenarioStarts
     from admittance.diagrams.scenario import load_scenario
 
     scenario = load_scenario(args.scenario, args.overrides)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_stability"
     axes = MapAxes.quick() if args.quick else MapAxes()
     check_output_dir(out, overwrite=args.force)
+    CheckScenarioStarts(scenario)
     report = analyse(scenario, axes=axes, with_trajectory=not args.no_trajectory, progress=progress)
     progress(f"writing {out}/")
     folder = write_report(report, out, overwrite=args.force)
@@ -467,7 +477,11 @@ def _load_libraries() -> None:
 def _run(args: argparse.Namespace) -> int:
     _load_libraries()
     from admittance.diagrams.app.progress import Progress
-    from admittance.diagrams.app.result_folder import OutputExistsError, completed_folders
+    from admittance.diagrams.app.result_folder import (
+        OutputExistsError,
+        OutputPathError,
+        completed_folders,
+    )
     from admittance.diagrams.scenario import ScenarioError
     from admittance.diagrams.visualization import DiagramPictureError
 
@@ -475,9 +489,13 @@ def _run(args: argparse.Namespace) -> int:
     progress = Progress(args.command, quiet=args.quiet or args.quiet_all)
     try:
         return args.handler(args, progress)
-    except (ScenarioError, OutputExistsError, DiagramPictureError) as error:
+    except (ScenarioError, OutputExistsError, OutputPathError, DiagramPictureError) as error:
         _error(str(error))
         return EXIT_INPUT_ERROR
+    except OSError as error:  # the system refused a write that was possible at the start
+        where = f"{error.filename}: " if error.filename else ""
+        _error(f"{where}{error.strerror or error}")
+        return EXIT_RUN_FAILED
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -38,6 +38,7 @@ from admittance.diagrams.app.sweep.runner import (
     sigterm_interrupts,
     simulate_point,
 )
+from admittance.diagrams.closed_loop import CheckScenarioStarts
 from admittance.diagrams.scenario import CONTROLLER_KINDS, Scenario, load_scenario, scenario_to_yaml
 from admittance.diagrams.simulation import SETTLE_BAND, settling_columns
 
@@ -113,15 +114,6 @@ def _run_controller(task: dict) -> ControllerRun:
     return controller_run
 
 
-def _check_scenario_starts(scenario: Scenario) -> None:
-    """Raises ScenarioError if the scenario cannot start (a pose out of reach, a force
-    beyond the effort limits), before five workers find out each on its own."""
-    from admittance.diagrams.closed_loop import BuildClosedLoop, SetInitialConditions
-
-    loop = BuildClosedLoop(scenario)
-    SetInitialConditions(loop, loop.diagram.CreateDefaultContext())
-
-
 def _silent(line: str) -> None:
     pass
 
@@ -153,7 +145,7 @@ def compare_controllers(
     workers = check_workers(workers)
     scenario = load_scenario(source, overrides)
     study = define_sweep(source, overrides, grid=[f"controller.kind={','.join(kinds)}"])
-    _check_scenario_starts(scenario)
+    CheckScenarioStarts(scenario)  # once, before five workers find out each on its own
     tasks = [
         {
             "kind": point.values["controller.kind"],

@@ -31,18 +31,22 @@ class Progress:
             print(f"admittance {self.command}: {text}", file=sys.stderr, flush=True)
 
     def simulation(
-        self, duration: float, interval: float = SIMULATION_REPORT_INTERVAL
+        self, name: str, duration: float, interval: float = SIMULATION_REPORT_INTERVAL
     ) -> Callable[[float], None] | None:
-        """A callback for ``run_scenario(progress=...)``: a line with the simulated time
-        every `interval` s of wall time (None when quiet)."""
+        """A callback for ``run_scenario(progress=...)``: a line when the simulation starts
+        (its initial conditions accepted), then the simulated time every `interval` s of
+        wall time (None when quiet)."""
         if self.quiet:
             return None
-        next_report = time.monotonic() + interval
+        next_report = None
 
         def report(simulated: float) -> None:
             nonlocal next_report
             now = time.monotonic()
-            if now >= next_report:
+            if next_report is None:
+                self(f"simulating {name}: {number(duration, ' s')}")
+                next_report = now + interval
+            elif now >= next_report:
                 next_report = now + interval
                 percent = number(100.0 * simulated / duration, " %", digits=2)
                 self(f"simulated {number(simulated, ' s')} of {number(duration, ' s')} ({percent})")

@@ -30,11 +30,13 @@ from admittance.diagrams.app.interrupts import sigint_held_back
 
 __all__ = [
     "OutputExistsError",
+    "OutputPathError",
     "ResultFolder",
     "atomic_output_dir",
     "atomic_write",
     "atomic_write_text",
     "check_output_dir",
+    "check_writable",
     "json_safe",
     "result_folder",
 ]
@@ -50,8 +52,34 @@ class OutputExistsError(FileExistsError):
     """The result folder exists and overwriting was not asked for."""
 
 
+class OutputPathError(ValueError):
+    """An output path that cannot be written (no such place, no permission, the current
+    folder itself)."""
+
+
+def check_writable(path: str | Path, flag: str = "--out") -> None:
+    """Raises OutputPathError unless `path` can be created: its nearest existing folder
+    takes a new entry (tried by creating and removing an empty folder there).
+
+    Called before a run, so that a long simulation is not wasted on a refused write.
+    """
+    path = Path(path)
+    place = path.absolute().parent
+    while not place.exists() and place != place.parent:
+        place = place.parent
+    if not place.is_dir():
+        raise OutputPathError(f"{flag} {path}: {place} is not a folder")
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".admittance-probe.", dir=place))
+    except OSError as error:
+        raise OutputPathError(
+            f"{flag} {path}: cannot write into {place}: {error.strerror}"
+        ) from None
+
+
 def check_output_dir(out_dir: str | Path, overwrite: bool) -> None:
-    """Raises OutputExistsError if `out_dir` holds something and `overwrite` is False.
+    """Raises OutputExistsError if `out_dir` holds something and `overwrite` is False, and
+    OutputPathError if it cannot be written or would replace the current folder.
 
     Called before a run, so that a long simulation is not wasted on a refused write.
     """
@@ -62,6 +90,12 @@ def check_output_dir(out_dir: str | Path, overwrite: bool) -> None:
         )
     if out_dir.exists() and not out_dir.is_dir():
         raise OutputExistsError(f"--out {out_dir}: exists and is not a folder")
+    here = Path.cwd().resolve()
+    if out_dir.exists() and (out_dir.resolve() == here or out_dir.resolve() in here.parents):
+        raise OutputPathError(
+            f"--out {out_dir}: is the current folder or holds it; choose a folder of its own"
+        )
+    check_writable(out_dir)
 
 
 def _process_alive(pid: int) -> bool:

@@ -6,6 +6,7 @@ import dataclasses
 import hashlib
 import itertools
 import json
+import math
 import typing
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -14,6 +15,7 @@ import numpy as np
 
 from admittance.diagrams.app import formatting
 from admittance.diagrams.app.sweep.specs import (
+    MAX_POINTS,
     GridAxis,
     RandomAxis,
     SweepError,
@@ -151,8 +153,15 @@ def define_sweep(
         raise SweepError("--samples: required with --random (Monte Carlo samples per grid point)")
     if samples is not None and not random_axes:
         raise SweepError("--samples: only used with --random KEY=DIST")
-    if samples is not None and samples < 1:
-        raise SweepError(f"--samples {samples}: must be an integer >= 1")
+    if samples is not None and not 1 <= samples <= MAX_POINTS:
+        raise SweepError(f"--samples {samples}: must be an integer in [1, {MAX_POINTS}]")
+    total = math.prod(len(axis.values) for axis in grid_axes) * (samples or 1)
+    if total > MAX_POINTS:
+        flags = " x ".join(
+            [f"{len(a.values)} ({a.flag})" for a in grid_axes]
+            + ([f"{samples} (--samples)"] if random_axes else [])
+        )
+        raise SweepError(f"sweep: {flags} = {total} points; at most {MAX_POINTS} (split the sweep)")
     if seed < 0:
         raise SweepError(f"--seed {seed}: must be an integer >= 0")
     seen: dict[str, str] = {}

@@ -8,7 +8,11 @@ import json
 import os
 from pathlib import Path
 
-from admittance.diagrams.app.result_folder import atomic_write_text
+from admittance.diagrams.app.result_folder import (
+    OutputPathError,
+    atomic_write_text,
+    check_writable,
+)
 from admittance.diagrams.app.sweep.definition import SweepDefinition
 from admittance.diagrams.app.sweep.specs import SweepError
 
@@ -42,6 +46,11 @@ def check_folder(out_dir: Path, force: bool) -> None:
                 f"--out {out_dir}: exists and is not a sweep folder (no {DEFINITION_FILE}); "
                 f"choose another folder or pass --force"
             )
+    if not out_dir.exists():
+        try:
+            check_writable(out_dir)
+        except OutputPathError as error:
+            raise SweepError(str(error)) from None
 
 
 @contextlib.contextmanager

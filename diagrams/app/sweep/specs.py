@@ -13,6 +13,7 @@ from admittance.diagrams.scenario import ScenarioError, parse_value
 
 __all__ = [
     "GRID_FORMS",
+    "MAX_POINTS",
     "RANDOM_FORMS",
     "GridAxis",
     "RandomAxis",
@@ -20,6 +21,10 @@ __all__ = [
     "parse_grid",
     "parse_random",
 ]
+
+# The most points a sweep may have: validating them alone takes minutes, running them
+# days on one machine (a few seconds each).
+MAX_POINTS = 100_000
 
 GRID_FORMS = "a comma list (1e4,5e4,1e5), linspace:A:B:N or logspace:A:B:N"
 RANDOM_FORMS = "uniform:A:B, loguniform:A:B, normal:MEAN:STD, randint:A:B or choice:a,b,c"
@@ -136,8 +141,10 @@ def parse_grid(text: str) -> GridAxis:
             raise _bad_spec(flag, text, f"{form.group(1)} takes A:B:N", forms)
         low, high = _numbers(flag, text, parts[1:3], forms)
         count = _numbers(flag, text, parts[3:], forms)[0]
-        if not count.is_integer() or count < 1:
-            raise _bad_spec(flag, text, f"N must be an integer >= 1, got {parts[3]!r}", forms)
+        if not count.is_integer() or not 1 <= count <= MAX_POINTS:
+            raise _bad_spec(
+                flag, text, f"N must be an integer in [1, {MAX_POINTS}], got {parts[3]!r}", forms
+            )
         if form.group(1) == "logspace":
             if low <= 0 or high <= 0:
                 raise _bad_spec(flag, text, "logspace needs A > 0 and B > 0", forms)
