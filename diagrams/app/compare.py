@@ -1,8 +1,10 @@
 """Every force controller on the same scenario, side by side (``admittance compare``).
 
 Each controller of ``CONTROLLER_KINDS`` runs the scenario with only ``controller.kind``
-changed (baselines tuned by the matched rule of diagrams/force_controllers.py), in parallel
-on the local cores. The result folder (written atomically) holds:
+changed (baselines tuned by the matched rule of diagrams/force_controllers.py): a one-axis
+study over ``controller.kind``, defined and validated as a sweep's points and run in
+parallel by the sweep's runner (diagrams/app/sweep/runner.py: its worker processes and
+Ctrl-C handling). The result folder (written atomically) holds:
 
 * ``table.txt`` and ``table.csv``: one row per controller: peak force, peak after the first
   contact transient, settling time (5 %) after each event, RMS and steady-state force error,
