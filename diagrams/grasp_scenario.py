@@ -21,16 +21,21 @@ from pydrake.common.yaml import yaml_load_typed
 from pydrake.systems.analysis import SimulatorConfig
 
 from admittance.diagrams.scenario import (
-    _INTEGRATION_SCHEMES,
+    INTEGRATION_SCHEMES,
     _check_tree,
     _coerce_numbers,
     _dump,
-    _require,
-    _require_one_of,
     _set_dotted,
     _unknown_key_error,
     parse_overrides,
     scenario_keys,
+)
+from admittance.diagrams.scenario_validation import (
+    RANGES,
+    Range,
+    _require,
+    _require_one_of,
+    _require_range,
 )
 
 __all__ = [
@@ -197,18 +202,63 @@ class GraspScenario:
         return self.plan.close_time + self.plan.force_ramp_time
 
 
-def _require_range(value, key: str, low: float, high: float, unit: str, *, open_low=True):
-    inside = low < value <= high if open_low else low <= value <= high
-    bracket = "(" if open_low else "["
-    _require(math.isfinite(value) and inside, key, f"in {bracket}{low:g}, {high:g}] {unit}", value)
+# Every key that is one number in a range, in the order they are checked (the arm's
+# scenario_validation.Range: the message states the range as written here).
+GRASP_RANGES: dict[str, Range] = {
+    "duration": Range("(0, 1e4]", "s"),
+    "seed": RANGES["seed"],
+    # SAP is stable at any step, but the sampled controllers and the FlexiForce readout run
+    # at this period too.
+    "time_step": Range("[1e-4, 5e-3]", or_zero=True, text="0 (continuous) or in [0.0001, 0.005] s"),
+    # The fingertips reach faces within about 1 cm of the planned ones.
+    "brick.size_error": Range("[-0.01, 0.01]", "m"),
+    "brick.stiffness_error": Range("[0.01, 100]", "(ratio)"),
+    "contact.stiffness": Range("(0, 1e7]", "N/m"),
+    "contact.dissipation": Range("[0, 1000]", "s/m"),
+    "contact.friction": Range("(0, 2]"),
+    "plan.open_distance": Range("[0, 0.03]", "m"),
+    "plan.close_time": Range("(0, 10]", "s"),
+    "plan.force_ramp_time": Range("(0, 10]", "s"),
+    "plan.side_contact_height": Range("[-0.03, 0.03]", "m"),
+    "admittance.gamma": Range("(0, 0.001]"),
+    "admittance.alpha": Range("[0, 1]", "s"),
+    "admittance.max_push": Range("(0, 0.02]", "m"),
+    "admittance.max_retract": Range("(0, 0.05]", "m"),
+    "sensor.noise_std": Range("[0, 10]", "N"),
+    "sensor.filter_cutoff": Range("(0, 1e6]", "Hz"),
+    "disturbance.duration": Range("(0, 1000]", "s"),
+    "disturbance.mass_scale": Range("(0, 10]"),
+    "simulator.accuracy": RANGES["simulator.accuracy"],
+    "simulator.max_step_size": RANGES["simulator.max_step_size"],
+    "logging.period": RANGES["logging.period"],
+}
+# Each finger's PID gains on (normal, tangent).
+GRASP_PID_GAINS: dict[str, Range] = {
+    "kp": Range("(0, 1e5]", text="2 values (normal, tangent), > 0 and <= 1e+05"),
+    "kd": Range("[0, 1e4]", text="2 values (normal, tangent), >= 0 and <= 10000"),
+    "ki": Range("[0, 1e5]", text="2 values (normal, tangent), >= 0 and <= 1e+05"),
+}
+# The real contact stiffness (planned times brick.stiffness_error), N/m.
+MAX_CONTACT_STIFFNESS = 1e7
+
+
+def _value_of(scenario: GraspScenario, key: str):
+    value = scenario
+    for part in key.split("."):
+        value = getattr(value, part)
+    return value
 
 
 def validate_grasp(scenario: GraspScenario) -> GraspScenario:
-    """Range checks of every key; raises ScenarioError naming the first bad key."""
+    """Every key checked; raises ScenarioError naming the first bad key and what is allowed.
+
+    The ranges of GRASP_RANGES first, then lists, choices, and the checks that relate keys.
+    """
     s = scenario
     _require(s.kind == "grasp", "kind", "'grasp' for a grasp scenario", s.kind)
-    _require_range(s.duration, "duration", 0.0, 1e4, "s")
-    _require(s.seed >= 0, "seed", ">= 0", s.seed)
+    for key, allowed in GRASP_RANGES.items():
+        _require_range(_value_of(s, key), key, allowed)
+    # Lists.
     _require(
         len(s.force_reference) == len(FINGERS)
         and all(math.isfinite(f) and 0 < f <= 50 for f in s.force_reference),
@@ -216,35 +266,37 @@ def validate_grasp(scenario: GraspScenario) -> GraspScenario:
         f"{len(FINGERS)} values in (0, 50] N (finger1, finger2, finger3)",
         s.force_reference,
     )
-    # SAP is stable at any step, but the sampled controllers and the FlexiForce readout
-    # run at this period too: 0.1 ms to 5 ms, or 0 (continuous).
+    for name, allowed in GRASP_PID_GAINS.items():
+        gains = getattr(s.pid, name)
+        _require(
+            len(gains) == 2 and all(map(allowed.allows, gains)),
+            f"pid.{name}",
+            allowed.allowed(),
+            gains,
+        )
+    d = s.disturbance
     _require(
-        s.time_step == 0 or (math.isfinite(s.time_step) and 1e-4 <= s.time_step <= 5e-3),
-        "time_step",
-        "0 (continuous) or in [0.0001, 0.005] s",
-        s.time_step,
+        len(d.force) == 2 and all(math.isfinite(f) and abs(f) <= 20 for f in d.force),
+        "disturbance.force",
+        "2 values (world y, world z) within [-20, 20] N",
+        d.force,
     )
-    # The fingertips reach faces within about 1 cm of the planned ones.
-    _require_range(s.brick.size_error, "brick.size_error", -0.01, 0.01, "m", open_low=False)
-    _require_range(
-        s.brick.stiffness_error, "brick.stiffness_error", 0.01, 100.0, "(ratio)", open_low=False
+    # Choices.
+    _require_one_of(s.controller.kind, "controller.kind", GRASP_CONTROLLER_KINDS)
+    _require_one_of(s.sensor.kind, "sensor.kind", ("ideal", "flexiforce"))
+    _require_one_of(d.kind, "disturbance.kind", GRASP_DISTURBANCE_KINDS)
+    _require_one_of(
+        s.simulator.integration_scheme, "simulator.integration_scheme", INTEGRATION_SCHEMES
     )
-    _require_range(s.contact.stiffness, "contact.stiffness", 0.0, 1e7, "N/m")
+    # Keys that depend on others.
+    _require(s.simulator.start_time == 0.0, "simulator.start_time", "0", s.simulator.start_time)
     _require(
-        s.true_contact_stiffness <= 1e7,
+        s.true_contact_stiffness <= MAX_CONTACT_STIFFNESS,
         "brick.stiffness_error",
-        f"<= {1e7 / s.contact.stiffness:.3g} with contact.stiffness = "
-        f"{s.contact.stiffness:g} N/m (the real stiffness stays <= 1e7 N/m)",
+        f"<= {MAX_CONTACT_STIFFNESS / s.contact.stiffness:.3g} with contact.stiffness = "
+        f"{s.contact.stiffness:g} N/m (the real stiffness stays <= {MAX_CONTACT_STIFFNESS:g} "
+        "N/m)",
         s.brick.stiffness_error,
-    )
-    _require_range(s.contact.dissipation, "contact.dissipation", 0.0, 1e3, "s/m", open_low=False)
-    _require_range(s.contact.friction, "contact.friction", 0.0, 2.0, "")
-    p = s.plan
-    _require_range(p.open_distance, "plan.open_distance", 0.0, 0.03, "m", open_low=False)
-    _require_range(p.close_time, "plan.close_time", 0.0, 10.0, "s")
-    _require_range(p.force_ramp_time, "plan.force_ramp_time", 0.0, 10.0, "s")
-    _require_range(
-        p.side_contact_height, "plan.side_contact_height", -0.03, 0.03, "m", open_low=False
     )
     _require(
         s.force_ramp_end < s.duration,
@@ -252,42 +304,29 @@ def validate_grasp(scenario: GraspScenario) -> GraspScenario:
         f"> plan.close_time + plan.force_ramp_time = {s.force_ramp_end:g} s",
         s.duration,
     )
-    _require_one_of(s.controller.kind, "controller.kind", GRASP_CONTROLLER_KINDS)
-    a = s.admittance
-    _require_range(a.gamma, "admittance.gamma", 0.0, 1e-3, "")
-    _require_range(a.alpha, "admittance.alpha", 0.0, 1.0, "s", open_low=False)
-    _require_range(a.max_push, "admittance.max_push", 0.0, 0.02, "m")
-    _require_range(a.max_retract, "admittance.max_retract", 0.0, 0.05, "m")
-    for name, low, high in (("kp", 0.0, 1e5), ("kd", -1.0, 1e4), ("ki", -1.0, 1e5)):
-        gains = getattr(s.pid, name)
-        allowed = "> 0" if name == "kp" else ">= 0"
-        _require(
-            len(gains) == 2 and all(math.isfinite(g) and low < g <= high for g in gains),
-            f"pid.{name}",
-            f"2 values (normal, tangent), {allowed} and <= {high:g}",
-            gains,
-        )
+    _require(
+        d.kind == "none" or (math.isfinite(d.start) and 0 <= d.start < s.duration),
+        "disturbance.start",
+        f"in [0, duration = {s.duration:g}) s",
+        d.start,
+    )
     if s.controller.kind == "optimal_admittance":
         needed = max(s.force_reference) / s.pid.kp[0]
         _require(
-            a.max_push > needed,
+            s.admittance.max_push > needed,
             "admittance.max_push",
             f"> max(force_reference) / pid.kp[0] = {needed:.3g} m (the PID's push at the "
             "bound must exceed Fr)",
-            a.max_push,
+            s.admittance.max_push,
         )
-    n = s.sensor
-    _require_one_of(n.kind, "sensor.kind", ("ideal", "flexiforce"))
     _require(
-        s.time_step > 0 or n.kind == "flexiforce",
+        s.time_step > 0 or s.sensor.kind == "flexiforce",
         "sensor.kind",
         "flexiforce with time_step = 0 (a continuous plant's contact results depend on its "
         "actuation: the sensor's filter breaks that loop)",
-        n.kind,
+        s.sensor.kind,
     )
-    _require_range(n.noise_std, "sensor.noise_std", 0.0, 10.0, "N", open_low=False)
-    _require_range(n.filter_cutoff, "sensor.filter_cutoff", 0.0, 1e6, "Hz")
-    if n.kind == "flexiforce":
+    if s.sensor.kind == "flexiforce":
         from admittance.systems.flexiforce import FlexiForceSensor
 
         full_scale = FlexiForceSensor().saturation_force
@@ -297,33 +336,6 @@ def validate_grasp(scenario: GraspScenario) -> GraspScenario:
             f"< {0.9 * full_scale:.4g} N with sensor.kind=flexiforce (90 % of full scale)",
             s.force_reference,
         )
-    d = s.disturbance
-    _require_one_of(d.kind, "disturbance.kind", GRASP_DISTURBANCE_KINDS)
-    _require(
-        math.isfinite(d.start) and 0 <= d.start and (d.kind == "none" or d.start < s.duration),
-        "disturbance.start",
-        f"in [0, duration = {s.duration:g}) s",
-        d.start,
-    )
-    _require_range(d.duration, "disturbance.duration", 0.0, 1e3, "s")
-    _require(
-        len(d.force) == 2 and all(math.isfinite(f) and abs(f) <= 20 for f in d.force),
-        "disturbance.force",
-        "2 values (world y, world z) within [-20, 20] N",
-        d.force,
-    )
-    _require_range(d.mass_scale, "disturbance.mass_scale", 0.0, 10.0, "")
-    c = s.simulator
-    _require_one_of(c.integration_scheme, "simulator.integration_scheme", _INTEGRATION_SCHEMES)
-    _require_range(c.accuracy, "simulator.accuracy", 0.0, 0.1, "")
-    _require_range(c.max_step_size, "simulator.max_step_size", 0.0, 1.0, "s")
-    _require(c.start_time == 0.0, "simulator.start_time", "0", c.start_time)
-    _require(
-        math.isfinite(s.logging.period) and s.logging.period >= 0,
-        "logging.period",
-        ">= 0 s (0 = every time_step)",
-        s.logging.period,
-    )
     return scenario
 
 

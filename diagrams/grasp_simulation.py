@@ -17,6 +17,7 @@ within SETTLE_BAND of Fr to the end of the run.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -217,10 +218,16 @@ def compute_grasp_metrics(result: GraspResult) -> dict:
     return metrics
 
 
-def run_grasp(scenario: GraspScenario, *, loop: GraspLoop | None = None) -> GraspResult:
+def run_grasp(
+    scenario: GraspScenario,
+    *,
+    loop: GraspLoop | None = None,
+    progress: Callable[[float], None] | None = None,
+) -> GraspResult:
     """Builds (unless given), initializes and simulates a grasp; returns its time series.
 
     A ``mass_step`` disturbance sets the brick's mass parameter at its start time.
+    `progress` is called with the simulated time (s) after every step.
 
     Raises:
         SimulationDivergedError: the run blew up (the exception carries the partial result).
@@ -231,7 +238,7 @@ def run_grasp(scenario: GraspScenario, *, loop: GraspLoop | None = None) -> Gras
     context = simulator.get_mutable_context()
     SetGraspInitialConditions(loop, context)
     divergence: list[str] = []
-    simulator.set_monitor(_divergence_monitor(loop, divergence))
+    simulator.set_monitor(_divergence_monitor(loop, divergence, progress))
     simulator.Initialize()
     stops = [scenario.duration]
     disturbance = scenario.disturbance

@@ -7,13 +7,10 @@ place at the end, so a folder holds a complete result or is left as it was.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
-import matplotlib.pyplot as plt
-
-from admittance.diagrams.app.result_folder import atomic_output_dir, json_safe
-from admittance.diagrams.app.simulate import write_csv
+from admittance.diagrams.app.result_folder import ResultFolder, result_folder
+from admittance.diagrams.app.simulate import _write_timeseries
 from admittance.diagrams.grasp_plots import plot_grasp
 from admittance.diagrams.grasp_simulation import GraspResult, grasp_verdict_line
 from admittance.diagrams.scenario import scenario_to_yaml
@@ -23,20 +20,16 @@ __all__ = ["GRASP_FIGURE", "grasp_summary", "write_grasp_results"]
 GRASP_FIGURE = "grasp_forces.png"
 
 
-def write_grasp_results(result: GraspResult, out_dir: str | Path, overwrite: bool = True) -> Path:
-    """Writes a complete grasp result folder atomically; returns its path."""
-    with atomic_output_dir(out_dir, overwrite=overwrite) as staging:
-        write_csv(result, staging / "timeseries.csv")
-        (staging / "metrics.json").write_text(
-            json.dumps(json_safe(result.metrics), indent=2) + "\n"
-        )
-        (staging / "scenario.yaml").write_text(scenario_to_yaml(result.scenario))
-        axes = plot_grasp(result)
-        figure = axes[0].figure
-        figure.tight_layout()
-        figure.savefig(staging / GRASP_FIGURE, dpi=110)
-        plt.close(figure)
-    return Path(out_dir)
+def write_grasp_results(
+    result: GraspResult, out_dir: str | Path, overwrite: bool = True
+) -> ResultFolder:
+    """Writes a complete grasp result folder atomically; returns what it wrote."""
+    with result_folder(out_dir, overwrite=overwrite) as folder:
+        folder.write_with("timeseries.csv", lambda path: _write_timeseries(result, path))
+        folder.write_json("metrics.json", result.metrics)
+        folder.write_text("scenario.yaml", scenario_to_yaml(result.scenario))
+        folder.write_figure(GRASP_FIGURE, plot_grasp(result)[0].figure)
+    return folder
 
 
 def grasp_summary(result: GraspResult) -> str:
