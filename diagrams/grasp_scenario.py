@@ -36,6 +36,7 @@ from admittance.diagrams.scenario_validation import (
     _require,
     _require_one_of,
     _require_range,
+    _value_of,
 )
 
 __all__ = [
@@ -240,13 +241,6 @@ GRASP_PID_GAINS: dict[str, Range] = {
 }
 # The real contact stiffness (planned times brick.stiffness_error), N/m.
 MAX_CONTACT_STIFFNESS = 1e7
-
-
-def _value_of(scenario: GraspScenario, key: str):
-    value = scenario
-    for part in key.split("."):
-        value = getattr(value, part)
-    return value
 
 
 def validate_grasp(scenario: GraspScenario) -> GraspScenario:

@@ -60,6 +60,7 @@ DRAKE_MODULES = (
     "pydrake.systems.framework",
     "pydrake.systems.primitives",
     "pydrake.systems.scalar_conversion",
+    "pydrake.trajectories",
 )
 
 EXIT_STATUS = """\
