@@ -105,8 +105,26 @@ def test_saturation_reads_saturation_force(force):
     assert _measured(sensor, context) == pytest.approx(110.0, abs=1e-9)
 
 
-def test_tension_reads_as_unloaded():
+def test_tension_drives_the_sensor_reading_to_zero_not_below():
+    """A pulling (negative) contact force reads as no force: the filter is driven to the
+    unloaded output V_offset, so the reading decays to 0 N and never goes negative."""
     sensor = FlexiForceSensor()
+    # Unloaded and pulled at 20 N: the state stays at V_offset (dV/dt = 0), the reading 0 N.
+    context = _context(sensor, voltage=V_OFFSET, force=-20.0)
+    assert _xdot(sensor, context) == 0.0
+    assert _measured(sensor, context) == pytest.approx(0.0, abs=1e-12)
+    # Loaded (10 N on the filter state) and then pulled: dV/dt = (V_offset - V) / tau, the
+    # decay towards V_offset, not towards V_offset + k (-20 N) = -0.896 V.
+    loaded = V_OFFSET + GAIN * 10.0
+    context = _context(sensor, voltage=loaded, force=-20.0)
+    assert _xdot(sensor, context) == pytest.approx((V_OFFSET - loaded) * POLE, rel=1e-12)
+    # Ten time constants later the reading is 10 N e^-10 = 0.45 mN above zero, not below.
+    simulator = Simulator(sensor, context)
+    simulator.get_mutable_integrator().set_target_accuracy(1e-9)
+    simulator.AdvanceTo(10 * TAU)
+    reading = _measured(sensor, context)
+    assert reading == pytest.approx(10.0 * math.exp(-10.0), rel=1e-3)
+    # The analysis helper describes the same law.
     assert sensor.static_output_voltage(-20.0) == pytest.approx(V_OFFSET, abs=1e-15)
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from pydrake.autodiffutils import AutoDiffXd, InitializeAutoDiff
+from pydrake.autodiffutils import AutoDiffXd
 from pydrake.systems.analysis import Simulator
 
 from admittance.systems.optimal_admittance import OptimalAdmittance
@@ -65,7 +65,6 @@ def test_gradient_flow_rate_matches_eq_10_prime():
     measured = 3.0
     rate = 4.0  # dF/dt, so dE/dt = -4
     error = 5.0 - measured
-    (z,) = InitializeAutoDiff([[0.4]]).flatten()
     z = AutoDiffXd(0.4, [error])
     block.measured_force_input.FixValue(context, [AutoDiffXd(measured, [rate])])
     block.desired_force_input.FixValue(context, [AutoDiffXd(5.0, [0.0])])
