@@ -49,9 +49,7 @@ def _write_config(name: str, settings: dict) -> Path:
     """cosmic-ray's config for one target: its module and its unit tests."""
     target = settings["targets"][name]
     tests = " ".join(target["tests"])
-    command = (
-        f"{sys.executable} -m pytest -x -q -p no:cacheprovider -p no:hypothesispytest {tests}"
-    )
+    command = f"{sys.executable} -m pytest -x -q -p no:cacheprovider -p no:hypothesispytest {tests}"
     excluded = settings["exclude-operators"]
     lines = [
         "[cosmic-ray]",
@@ -199,8 +197,10 @@ def main(argv: list[str] | None = None) -> int:
         )
     scored = totals["mutants"] - totals["equivalent"] - totals["pending"]
     if scored:
-        print(f"\nall: {totals['killed']} killed of {scored} non-equivalent mutants: "
-              f"{100 * totals['killed'] / scored:.1f} % ({totals['pending']} pending)")
+        print(
+            f"\nall: {totals['killed']} killed of {scored} non-equivalent mutants: "
+            f"{100 * totals['killed'] / scored:.1f} % ({totals['pending']} pending)"
+        )
     return 0
 
 

@@ -77,13 +77,23 @@ def test_each_law_runs_once_per_evaluation(report):
         assert evaluations <= calls[law] <= 1.2 * evaluations, law
 
 
-def test_floor_stays_put_and_is_cheaper(report):
+def test_floor_holds_the_arm_and_the_ratios_are_its_quotients(report):
     floor = report["floor"]
-    assert floor["wall_time"]["median"] > 0
-    assert floor["integrator_steps"] > 0 and floor["derivative_evaluations"] > 0
+    loop = report["closed_loop"]
     assert floor["max_joint_drift"] < 1e-6  # held by the gravity torques
-    assert report["ratio_to_floor"] > 0
-    assert report["per_evaluation_ratio_to_floor"] > 0
+    # The bare arm at rest needs far fewer integrator steps and derivative evaluations than
+    # the closed loop (measured 11 and 51 against 136 and 1569 for 0.5 s): counts, not
+    # times, so the comparison holds on a busy machine.
+    assert 0 < floor["integrator_steps"] < loop["integrator_steps"]
+    assert 0 < floor["derivative_evaluations"] < loop["derivative_evaluations"]
+    # The ratios are what their names say, from the reported medians and counts.
+    floor_median = floor["wall_time"]["median"]
+    assert report["ratio_to_floor"] == pytest.approx(loop["wall_time"]["median"] / floor_median)
+    per_evaluation = loop["wall_time"]["median"] / loop["derivative_evaluations"]
+    floor_per_evaluation = floor_median / floor["derivative_evaluations"]
+    assert report["per_evaluation_ratio_to_floor"] == pytest.approx(
+        per_evaluation / floor_per_evaluation
+    )
 
 
 def test_logging_and_memory(report):
