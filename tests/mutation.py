@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import ast
 import os
+import sqlite3
 import subprocess
 import sys
 import time
@@ -78,7 +79,25 @@ def _tool(name: str) -> str:
     return str(Path(sys.executable).parent / name)
 
 
-def run(name: str, settings: dict, *, reset: bool) -> float:
+def _forget_survivors(session: Path) -> int:
+    """Drops the results of the mutants that survived, so that exec runs them again."""
+    from cosmic_ray.work_db import WorkDB, use_db
+    from cosmic_ray.work_item import TestOutcome
+
+    with use_db(str(session), WorkDB.Mode.open) as db:
+        survivors = [
+            job for job, result in db.results if result.test_outcome == TestOutcome.SURVIVED
+        ]
+    connection = sqlite3.connect(session)
+    with connection:
+        connection.executemany(
+            "DELETE FROM work_results WHERE job_id = ?", [(job,) for job in survivors]
+        )
+    connection.close()
+    return len(survivors)
+
+
+def run(name: str, settings: dict, *, reset: bool, retest: bool) -> float:
     """Runs (or resumes) the session of one target; returns the seconds it took."""
     WORKDIR.mkdir(exist_ok=True)
     config = _write_config(name, settings)
@@ -89,6 +108,8 @@ def run(name: str, settings: dict, *, reset: bool) -> float:
     if not session.exists():
         _run(_tool("cosmic-ray"), "init", str(config), str(session))
         _run(_tool("cr-filter-operators"), str(session), str(config))
+    elif retest:
+        print(f"{name}: running the {_forget_survivors(session)} survivors again")
     _run(_tool("cosmic-ray"), "exec", str(config), str(session))
     return time.monotonic() - start
 
@@ -169,6 +190,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("targets", nargs="+", help=f"all, or of {sorted(settings['targets'])}")
     parser.add_argument("--report", action="store_true", help="report only, run nothing")
     parser.add_argument("--reset", action="store_true", help="start the sessions anew")
+    parser.add_argument(
+        "--retest", action="store_true", help="run the surviving mutants again (after new tests)"
+    )
     arguments = parser.parse_args(argv)
     names = sorted(settings["targets"]) if arguments.targets == ["all"] else arguments.targets
     for name in names:
@@ -180,7 +204,7 @@ def main(argv: list[str] | None = None) -> int:
     for name in names:
         seconds = None
         if not arguments.report:
-            seconds = run(name, settings, reset=arguments.reset)
+            seconds = run(name, settings, reset=arguments.reset, retest=arguments.retest)
         counts = report(name, settings)
         for key in totals:
             totals[key] += counts[key]

@@ -166,3 +166,156 @@ def test_bad_arguments_name_the_argument(arm_plant, kwargs, message):
     arguments.update(kwargs)
     with pytest.raises(ValueError, match=message):
         CartesianPid(arm_plant, **arguments)
+
+
+def test_gains_and_period_are_reported(arm_plant):
+    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI, period=0.002)
+    gains = pid.gains
+    for name, value in (("kp", KP), ("kd", KD), ("ki", KI)):
+        np.testing.assert_array_equal(gains[name], value)
+    assert pid.period == 0.002
+
+
+def test_arguments_are_keyword_only(arm_plant):
+    """Kp, Kd and Ki are all 3-vectors: a positional call could swap them unnoticed."""
+    with pytest.raises(TypeError):
+        CartesianPid(arm_plant, "fingertip", KP, KD, KI)
+
+
+def test_small_positive_and_zero_gains_are_accepted(arm_plant):
+    """kp > 0 (not >= 1), kd and ki >= 0: a soft, undamped, integral-free PID is valid."""
+    pid = CartesianPid(arm_plant, kp=[0.5, 0.5, 0.5], kd=0.0, ki=0.0)
+    q = np.array([-0.45, 1.66, 0.36])
+    X, J = eq18(q)
+    context = _pid_context(pid, q, np.zeros(3), X + [0.1, 0, 0], np.zeros(3), np.zeros(3))
+    np.testing.assert_allclose(pid.actuation_output.Eval(context), J.T @ [0.05, 0, 0], atol=1e-12)
+
+
+def test_holding_the_arm_through_the_integral_needs_ki_on_every_axis(arm_plant):
+    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=[200.0, 0.0, 200.0])
+    q = np.array([-0.45, 1.66, 0.36])
+    with pytest.raises(ValueError, match="ki > 0 on all axes"):
+        pid.holding_integral(np.r_[q, 0, 0, 0], np.ones(3))
+
+
+def test_torque_is_clipped_when_every_joint_saturates(arm_plant):
+    """1 m and 1 rad of error on every axis ask for far more than any actuator gives: the
+    output is the limits themselves, with the unclipped torque's signs."""
+    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI)
+    q = np.array([-0.45, 1.66, 0.36])
+    X, J = eq18(q)
+    for sign in (+1.0, -1.0):
+        error = sign * np.array([1.0, 1.0, 1.0])
+        context = _pid_context(pid, q, np.zeros(3), X + error, np.zeros(3), np.zeros(3))
+        unclipped = J.T @ (np.array(KP) * error)
+        assert np.all(np.abs(unclipped) > pid.effort_limits)
+        np.testing.assert_allclose(
+            pid.actuation_output.Eval(context), np.sign(unclipped) * pid.effort_limits
+        )
+
+
+@pytest.mark.parametrize("sign", [+1.0, -1.0], ids=["positive", "negative"])
+def test_autodiff_pid_clips_and_winds_back_like_the_float_one(arm_plant, sign):
+    """The AutoDiffXd law (what Linearize uses) saturates at the same limits, both signs,
+    with zero derivative where clipped, and the same back-calculation rate."""
+    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI)
+    pid_ad = pid.ToAutoDiffXd()
+    q = np.array([-0.45, 1.66, 0.36])
+    X, _ = eq18(q)
+    commanded = X + sign * np.array([0.5, 0.0, 0.0])
+    context = _pid_context(pid, q, np.zeros(3), commanded, np.zeros(3), np.zeros(3))
+    context_ad = pid_ad.CreateDefaultContext()
+    pid_ad.estimated_state_input.FixValue(context_ad, [AutoDiffXd(v) for v in np.r_[q, 0, 0, 0]])
+    pid_ad.commanded_position_input.FixValue(
+        context_ad, [AutoDiffXd(c, np.eye(3)[i]) for i, c in enumerate(commanded)]
+    )
+    pid_ad.commanded_velocity_input.FixValue(context_ad, [AutoDiffXd(0.0, np.zeros(3))] * 3)
+    pid_ad.set_integral(context_ad, [AutoDiffXd(0.0, np.zeros(3))] * 3)
+    torque = pid.actuation_output.Eval(context)
+    torque_ad = pid_ad.actuation_output.Eval(context_ad)
+    np.testing.assert_allclose([t.value() for t in torque_ad], torque, atol=1e-12)
+    clipped = np.abs(torque) == pid.effort_limits
+    assert np.any(clipped)
+    for t in np.asarray(torque_ad)[clipped]:
+        np.testing.assert_array_equal(t.derivatives(), 0.0)  # (Drake may leave it empty)
+    rate = pid.EvalTimeDerivatives(context).CopyToVector()
+    rate_ad = pid_ad.EvalTimeDerivatives(context_ad).CopyToVector()
+    np.testing.assert_allclose([r.value() for r in rate_ad], rate, rtol=1e-12)
+
+
+def test_back_calculation_leaves_axes_without_integral_alone(arm_plant):
+    """ki = 0 on y: that axis has no integral to unwind, its rate stays ec_y (finite)."""
+    ki = [200.0, 0.0, 200.0]
+    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=ki)
+    q = np.array([-0.45, 1.66, 0.36])
+    X, _ = eq18(q)
+    error = np.array([0.5, 0.01, 0.0])
+    context = _pid_context(pid, q, np.zeros(3), X + error, np.zeros(3), np.zeros(3))
+    assert np.any(np.abs(pid.actuation_output.Eval(context)) == pid.effort_limits)
+    rate = pid.EvalTimeDerivatives(context).CopyToVector()
+    assert np.all(np.isfinite(rate))
+    assert rate[1] == pytest.approx(error[1], rel=1e-12)  # the error, to rounding
+    assert rate[0] < 0  # x still unwinds
+
+
+def test_sampled_pid_has_no_continuous_state_and_reads_its_integral_anew(arm_plant):
+    """The sampled law's cache follows the discrete state: a new integral gives a new update."""
+    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI, period=0.001)
+    q = np.array([-0.45, 1.66, 0.36])
+    X, J = eq18(q)
+    context = _pid_context(pid, q, np.zeros(3), X, np.zeros(3), np.zeros(3))
+    assert pid.EvalTimeDerivatives(context).size() == 0
+    first = pid.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
+    np.testing.assert_allclose(first[3:], 0.0, atol=1e-12)
+    pid.set_integral(context, [1e-3, 0.0, 0.0])
+    second = pid.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
+    np.testing.assert_allclose(second[3:], J.T @ [KI[0] * 1e-3, 0, 0], atol=1e-12)
+
+
+def test_sampled_anti_windup_tracking_time_is_five_periods(arm_plant):
+    """Without D the tracking time sqrt(Kd / Ki) is 0: it is max(10 ms, 5 periods), 50 ms
+    at a 10 ms period, so the integral moves by h (ec + J^-T dtau / (Ki 0.05))."""
+    period = 0.01
+    pid = CartesianPid(arm_plant, kp=KP, kd=0.0, ki=KI, period=period)
+    q = np.array([-0.45, 1.66, 0.36])
+    X, J = eq18(q)
+    error = np.array([0.5, 0.0, 0.0])
+    context = _pid_context(pid, q, np.zeros(3), X + error, np.zeros(3), np.zeros(3))
+    updated = pid.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
+    unclipped = J.T @ (np.array(KP) * error)
+    clipped = np.clip(unclipped, -pid.effort_limits, pid.effort_limits)
+    assert np.any(clipped != unclipped)
+    wrench_excess = np.linalg.solve(J.T, clipped - unclipped)
+    rate = error + wrench_excess / (np.array(KI) * 5 * period)
+    np.testing.assert_allclose(updated[:3], period * rate, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(updated[3:], clipped, atol=1e-12)
+
+
+def test_actuation_follows_the_actuator_order_not_the_joint_order():
+    """With the URDF's transmissions listed in reverse, actuator k drives joint 3 - k: the
+    output is B^T tau, the torques in actuator order, each clipped to its own limit."""
+    from pathlib import Path
+
+    from pydrake.multibody.parsing import Parser
+    from pydrake.multibody.plant import MultibodyPlant
+
+    text = (Path(__file__).resolve().parents[1] / "urdf" / "planar_arm.urdf").read_text()
+    head, *transmissions = text.split("<transmission")
+    last, tail = transmissions[-1].split("</transmission>", 1)
+    transmissions[-1] = last + "</transmission>"
+    reordered = head + "".join("<transmission" + t for t in reversed(transmissions)) + tail
+    plant = MultibodyPlant(time_step=0.0)
+    Parser(plant).AddModelsFromString(reordered, "urdf")
+    plant.mutable_gravity_field().set_gravity_vector([0.0, -9.81, 0.0])
+    plant.Finalize()
+    joints = [plant.get_joint_actuator(i).joint().name() for i in plant.GetJointActuatorIndices()]
+    assert joints == ["joint3", "joint2", "joint1"]
+    pid = CartesianPid(plant, kp=KP, kd=KD, ki=KI)
+    np.testing.assert_allclose(pid.effort_limits, [5.0, 20.0, 30.0])
+    q = np.array([-0.45, 1.66, 0.36])
+    X, J = eq18(q)
+    error = np.array([1e-3, -1e-3, 1e-3])
+    context = _pid_context(pid, q, np.zeros(3), X + error, np.zeros(3), np.zeros(3))
+    tau = J.T @ (np.array(KP) * error)
+    assert np.all(np.abs(tau) < [30.0, 20.0, 5.0])
+    np.testing.assert_allclose(pid.actuation_output.Eval(context), tau[::-1], atol=1e-9)
