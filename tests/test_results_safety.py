@@ -10,8 +10,12 @@ import time
 
 import pytest
 
-from admittance.diagrams.cli import main
-from admittance.diagrams.output import INCOMPLETE_MARK, OutputExistsError, atomic_output_dir
+from admittance.diagrams.app.cli import main
+from admittance.diagrams.app.result_folder import (
+    INCOMPLETE_MARK,
+    OutputExistsError,
+    atomic_output_dir,
+)
 
 
 def _previous_result(folder):
@@ -58,7 +62,7 @@ def test_a_killed_writer_leaves_the_previous_result_and_a_marked_staging_folder(
     script = textwrap.dedent(
         f"""
         import os, signal
-        from admittance.diagrams.output import atomic_output_dir
+        from admittance.diagrams.app.result_folder import atomic_output_dir
         with atomic_output_dir({str(out)!r}) as staging:
             (staging / "timeseries.csv").write_text("time,x\\n0,0.2\\n")
             os.kill(os.getpid(), signal.SIGKILL)
@@ -83,7 +87,7 @@ _MARKED_MAIN = textwrap.dedent(
     """
     import pathlib, sys
     from pydrake.systems.analysis import Simulator
-    from admittance.diagrams.cli import main
+    from admittance.diagrams.app.cli import main
 
     marker = pathlib.Path(sys.argv[1])
     set_monitor = Simulator.set_monitor

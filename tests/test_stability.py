@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from pydrake.autodiffutils import AutoDiffXd
 
-from admittance.diagrams.cli import main
+from admittance.diagrams.app.cli import main
 from admittance.diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium
 from admittance.diagrams.scenario import load_scenario
 from admittance.diagrams.simulation import run_scenario

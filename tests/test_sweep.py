@@ -16,8 +16,8 @@ import time
 
 import pytest
 
-from admittance.diagrams.cli import main
-from admittance.diagrams.sweep import (
+from admittance.diagrams.app.cli import main
+from admittance.diagrams.app.sweep import (
     GRID_FORMS,
     RANDOM_FORMS,
     SweepError,
@@ -66,7 +66,7 @@ def _start_sweep(arguments: list[str]) -> subprocess.Popen:
     # background job without job control passes SIG_IGN on to its children).
     command = (
         "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
-        "from admittance.diagrams.cli import main; sys.exit(main(sys.argv[1:]))"
+        "from admittance.diagrams.app.cli import main; sys.exit(main(sys.argv[1:]))"
     )
     return subprocess.Popen(
         [sys.executable, "-c", command, *arguments],

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from admittance.diagrams.output import atomic_output_dir, json_safe
+from admittance.diagrams.app.result_folder import atomic_output_dir, json_safe
 from admittance.diagrams.scenario import CONTROLLER_KINDS, Scenario, load_scenario, scenario_to_yaml
 from admittance.diagrams.simulation import SETTLE_BAND, settling_columns
 

@@ -20,7 +20,11 @@ import os
 import sys
 from pathlib import Path
 
-from admittance.diagrams.output import OutputExistsError, atomic_write_text, check_output_dir
+from admittance.diagrams.app.result_folder import (
+    OutputExistsError,
+    atomic_write_text,
+    check_output_dir,
+)
 from admittance.diagrams.scenario import ScenarioError, builtin_scenario_names, load_scenario
 
 DEFAULT_SCENARIO = "paper_stiffness_step"
@@ -54,7 +58,7 @@ def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from admittance.diagrams.report import summary, write_results
+    from admittance.diagrams.app.simulate import summary, write_results
     from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
 
     scenario = load_scenario(args.scenario, args.overrides)
@@ -93,7 +97,7 @@ def _cmd_diagram(args: argparse.Namespace) -> int:
 def _cmd_bench(args: argparse.Namespace) -> int:
     import json
 
-    from admittance.diagrams.bench import format_benchmark, run_benchmark
+    from admittance.diagrams.app.bench import format_benchmark, run_benchmark
 
     scenario = load_scenario(args.scenario, args.overrides)
     if args.repeat < 1:
@@ -109,7 +113,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from admittance.diagrams.compare import compare_controllers, format_table, write_comparison
+    from admittance.diagrams.app.compare import compare_controllers, format_table, write_comparison
     from admittance.diagrams.force_controllers import baseline_gains
     from admittance.diagrams.scenario import CONTROLLER_KINDS
 
@@ -135,7 +139,12 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_stability(args: argparse.Namespace) -> int:
-    from admittance.diagrams.stability_report import MapAxes, analyse, format_report, write_report
+    from admittance.diagrams.app.stability_report import (
+        MapAxes,
+        analyse,
+        format_report,
+        write_report,
+    )
 
     scenario = load_scenario(args.scenario, args.overrides)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_stability"
@@ -149,7 +158,7 @@ def _cmd_stability(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from admittance.diagrams.sweep import SweepWorkerError, define_sweep, run_sweep
+    from admittance.diagrams.app.sweep import SweepWorkerError, define_sweep, run_sweep
 
     definition = define_sweep(
         args.scenario,

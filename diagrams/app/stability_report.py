@@ -10,8 +10,8 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
+from admittance.diagrams.app.result_folder import atomic_output_dir
 from admittance.diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium
-from admittance.diagrams.output import atomic_output_dir
 from admittance.diagrams.scenario import Scenario
 from admittance.diagrams.simulation import run_scenario
 from admittance.diagrams.stability import (

@@ -105,7 +105,7 @@ from pathlib import Path
 
 import numpy as np
 
-from admittance.diagrams.output import atomic_write, atomic_write_text, json_safe
+from admittance.diagrams.app.result_folder import atomic_write, atomic_write_text, json_safe
 from admittance.diagrams.scenario import (
     SCENARIO_DIR,
     ScenarioError,
