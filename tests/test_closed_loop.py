@@ -108,14 +108,16 @@ def test_moving_wall_keeps_contact_and_the_predicted_force_lag(moving_wall):
     assert metrics["first_contact_time"] is not None and metrics["first_contact_time"] < 0.1
     assert metrics["contact_losses"] == 0
     lag = 0.005 / (1e-5 * 1200.0)
-    # Measured while the wall moves: 4.49 N to 5.03 N, i.e. 0.09 N below the quasi-static
-    # Fr - lag (the onset of the motion) and 0.03 N above Fr (the noise, 0.02 N std, moves
-    # the arm). The margin of 0.25 N holds those ripples with a factor of 2.5 and fails a
-    # law whose Gamma K is off by a third (the lag changes by 0.2 N).
-    margin = 0.25
-    assert reference - lag - margin <= metrics["force_min_while_wall_moves"]
-    assert metrics["force_min_while_wall_moves"] <= reference - 0.5 * lag  # the lag is real
-    assert metrics["force_max_while_wall_moves"] <= reference + margin
+    # Once the lag has built up (the motion runs from 2.5 s to 6.5 s), the mean force is
+    # Fr - lag: measured 4.595 N over 3.5-6.5 s against the predicted 4.583 N (the arm's
+    # own dynamics add the 0.012 N). 0.05 N holds that with a factor of 4; a Gamma K off by
+    # a third either way moves the mean by 0.14-0.2 N (measured).
+    moving = (result.time > 3.5) & (result.time < 6.5)
+    assert np.mean(result.force[moving]) == pytest.approx(reference - lag, abs=0.05)
+    # The extremes while it moves: 4.49 N (the onset of the motion) to 5.03 N (measured);
+    # 0.25 N beyond Fr - lag and Fr bounds them with a factor of 2.5 and more.
+    assert reference - lag - 0.25 <= metrics["force_min_while_wall_moves"]
+    assert metrics["force_max_while_wall_moves"] <= reference + 0.25
     # The wall really moved 20 mm and the tip followed it.
     assert result.wall_position[-1] - result.wall_position[0] == pytest.approx(0.02)
     assert result.pose[-1, 0] - result.pose[0, 0] == pytest.approx(0.02, abs=1e-3)
