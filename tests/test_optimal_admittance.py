@@ -122,8 +122,9 @@ def test_sampled_law_latches_and_integrates():
 
 def test_sampled_law_latches_its_first_sample_at_t_0():
     """The first sample is taken at t = 0 (offset 0), then every period: after 1.5 periods
-    the held Xr is the second sample's, Gamma K (z0 + h E + alpha (E - E0))."""
-    period = 0.01
+    the held Xr is the second sample's, Gamma K (z0 + h E + alpha (E - E0)). (30 ms: 1 s is
+    no whole number of periods, so no other offset gives the same sample times.)"""
+    period = 0.03
     block = _block(period=period)
     context = _context(block, measured=3.0, desired=5.0, integral=0.2, initial_error=5.0)
     Simulator(block, context).AdvanceTo(1.5 * period)
