@@ -181,6 +181,10 @@ def test_autodiff_gain_of_output_to_force():
         (dict(stiffness=0.0), "stiffness"),
         (dict(force_axes=[3]), "force_axes"),
         (dict(force_axes=[]), "force_axes"),
+        (dict(force_axes=[0, 0]), "force_axes must be distinct"),
+        (dict(force_axes=[-1]), "force_axes must be distinct"),
+        (dict(gamma=math.inf), "gamma must be finite"),
+        (dict(alpha=math.nan), "alpha must be finite"),
         (dict(period=-1.0), "period"),
         (dict(max_push=0.0), "max_push must be > 0"),
         (dict(max_push=-0.01), "max_push must be > 0"),
@@ -242,3 +246,19 @@ def test_small_positive_force_bound_arguments_are_accepted():
     context = _context(block, measured=1.0, desired=0.25, integral=0.0, initial_error=0.0)
     # Fg = 0.375 N: E_b = -0.75 - 0.5 (1 - 0.375) = -1.0625 N.
     np.testing.assert_allclose(block.EvalTimeDerivatives(context).CopyToVector(), [-1.0625])
+
+
+def test_autodiff_law_takes_a_broken_reading_as_zero_error():
+    """NaN from the sensor in the AutoDiffXd law (what Linearize uses): E = 0, with no
+    derivative, so the integral freezes and Xr holds, as in the float law."""
+    block = _block().ToAutoDiffXd()
+    context = block.CreateDefaultContext()
+    block.measured_force_input.FixValue(context, [AutoDiffXd(math.nan, [1.0])])
+    block.desired_force_input.FixValue(context, [AutoDiffXd(5.0, [0.0])])
+    block.set_initial_force_error(context, [AutoDiffXd(0.0, [0.0])])
+    context.SetContinuousState([AutoDiffXd(0.4, [0.0])])
+    (rate,) = block.EvalTimeDerivatives(context).CopyToVector()
+    assert rate.value() == 0.0
+    np.testing.assert_array_equal(rate.derivatives(), 0.0)
+    offset = block.reference_offset_output.Eval(context)[0]
+    assert offset.value() == pytest.approx(GAMMA * K * 0.4, rel=1e-12)
