@@ -108,7 +108,7 @@ def CartesianPid_(T):
                 actuator = plant.get_joint_actuator(index)
                 selection[row, actuator.joint().velocity_start()] = 1.0
                 limit = actuator.effort_limit()
-                limits.append(limit if np.isfinite(limit) and limit > 0 else np.inf)
+                limits.append(limit)  # Drake keeps it > 0 (inf where the URDF gives none)
             self._actuation_from_generalized = selection
             self._actuators_in_joint_order = bool(np.array_equal(selection, np.eye(num_actuators)))
             self._effort_limits = np.array(limits)

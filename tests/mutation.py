@@ -125,6 +125,14 @@ def _template_lines(module: Path) -> range:
     return range(0)
 
 
+def _mutated_line(diff: str | None) -> str:
+    """The mutant's source line (stripped), from cosmic-ray's diff."""
+    for row in (diff or "").splitlines():
+        if row.startswith("+") and not row.startswith("+++"):
+            return row[1:].strip()
+    return ""
+
+
 def report(name: str, settings: dict) -> dict:
     """Counts of one target's session; prints the survivors that are not known equivalent."""
     from cosmic_ray.work_db import WorkDB, use_db
@@ -133,10 +141,9 @@ def report(name: str, settings: dict) -> dict:
     target = settings["targets"][name]
     module = ROOT / target["module-path"]
     source = module.read_text().splitlines()
-    equivalent = {
-        (entry["operator"], entry["line"], entry["column"]): entry
-        for entry in target.get("equivalent", [])
-    }
+    equivalent: dict[tuple, list[dict]] = {}
+    for entry in target.get("equivalent", []):
+        equivalent.setdefault((entry["operator"], entry["line"], entry["column"]), []).append(entry)
     inside = _template_lines(module)
     counts = dict(mutants=0, killed=0, survived=0, equivalent=0, pending=0, in_template=0)
     survivors, stale = [], []
@@ -158,9 +165,17 @@ def report(name: str, settings: dict) -> dict:
             killed = result.test_outcome in (TestOutcome.KILLED, TestOutcome.INCOMPETENT) or (
                 result.worker_outcome in (WorkerOutcome.EXCEPTION, WorkerOutcome.ABNORMAL)
             )
-            if key in equivalent:
-                matched.add(key)
-                entry = equivalent[key]
+            mutant = _mutated_line(result.diff)
+            entry = next(
+                (
+                    e
+                    for e in equivalent.get(key, [])
+                    if "mutant" not in e or e["mutant"].strip() == mutant
+                ),
+                None,
+            )
+            if entry is not None:
+                matched.add((*key, entry.get("mutant")))
                 if entry["source"].strip() != source[line - 1].strip():
                     stale.append(f"{name}:{line}: the listed source no longer matches")
                 if killed:
@@ -172,8 +187,10 @@ def report(name: str, settings: dict) -> dict:
             else:
                 counts["survived"] += 1
                 survivors.append((line, column, mutation.operator_name, result.diff))
-    for key in set(equivalent) - matched:
-        stale.append(f"{name}: listed equivalent {key} is no mutant of this session")
+    for key, entries in equivalent.items():
+        for entry in entries:
+            if (*key, entry.get("mutant")) not in matched:
+                stale.append(f"{name}: listed equivalent {key} is no mutant of this session")
     for line, column, operator, diff in sorted(survivors):
         print(f"--- survived {name}:{line}:{column} {operator}")
         print("\n".join(row for row in (diff or "").splitlines() if row[:1] in "+-"))

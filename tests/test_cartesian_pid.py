@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from pydrake.autodiffutils import AutoDiffXd
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.analysis import Simulator
 
 from admittance.systems.cartesian_pid import CartesianPid
 
@@ -154,9 +158,11 @@ def test_autodiff_conversion_gives_the_jacobian_stiffness(arm_plant):
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        (dict(kp=[0, 1, 1]), "kp"),
-        (dict(kd=[-1, 1, 1]), "kd"),
-        (dict(ki=[1, -1, 1]), "ki"),
+        (dict(kp=[0, 1, 1]), "kp must be finite and > 0"),
+        (dict(kp=[-1, 1, 1]), "kp must be finite and > 0"),
+        (dict(kd=[-1, 1, 1]), "kd must be finite and >= 0"),
+        (dict(ki=[1, -1, 1]), "ki must be finite and >= 0"),
+        (dict(ki=[1, math.inf, 1]), "ki must be finite"),
         (dict(period=-0.1), "period"),
         (dict(frame_name="nope"), "nope"),
     ],
@@ -291,23 +297,39 @@ def test_sampled_anti_windup_tracking_time_is_five_periods(arm_plant):
     np.testing.assert_allclose(updated[3:], clipped, atol=1e-12)
 
 
-def test_actuation_follows_the_actuator_order_not_the_joint_order():
-    """With the URDF's transmissions listed in reverse, actuator k drives joint 3 - k: the
-    output is B^T tau, the torques in actuator order, each clipped to its own limit."""
-    from pathlib import Path
-
-    from pydrake.multibody.parsing import Parser
-    from pydrake.multibody.plant import MultibodyPlant
-
+def _arm_with_transmissions(order) -> MultibodyPlant:
+    """The arm's URDF with its transmissions (actuators) in `order` (indices, repeats
+    allowed), parsed into a finalized plant."""
     text = (Path(__file__).resolve().parents[1] / "urdf" / "planar_arm.urdf").read_text()
     head, *transmissions = text.split("<transmission")
     last, tail = transmissions[-1].split("</transmission>", 1)
     transmissions[-1] = last + "</transmission>"
-    reordered = head + "".join("<transmission" + t for t in reversed(transmissions)) + tail
+    chosen = []
+    for count, index in enumerate(order):
+        transmission = transmissions[index]
+        if order[:count].count(index):  # a second actuator on the same joint
+            transmission = transmission.replace('name="joint', f'name="extra{count}_joint', 1)
+            transmission = transmission.replace('<actuator name="', f'<actuator name="x{count}')
+        chosen.append("<transmission" + transmission)
     plant = MultibodyPlant(time_step=0.0)
-    Parser(plant).AddModelsFromString(reordered, "urdf")
+    Parser(plant).AddModelsFromString(head + "".join(chosen) + tail, "urdf")
     plant.mutable_gravity_field().set_gravity_vector([0.0, -9.81, 0.0])
     plant.Finalize()
+    return plant
+
+
+@pytest.mark.parametrize("order", [[0, 1], [0, 1, 2, 2]], ids=["under", "over"])
+def test_the_pid_needs_one_actuator_per_joint(order):
+    plant = _arm_with_transmissions(order)
+    assert plant.num_actuated_dofs() == len(order)
+    with pytest.raises(ValueError, match="fully actuated"):
+        CartesianPid(plant, kp=KP, kd=KD, ki=KI)
+
+
+def test_actuation_follows_the_actuator_order_not_the_joint_order():
+    """With the URDF's transmissions listed in reverse, actuator k drives joint 3 - k: the
+    output is B^T tau, the torques in actuator order, each clipped to its own limit."""
+    plant = _arm_with_transmissions([2, 1, 0])
     joints = [plant.get_joint_actuator(i).joint().name() for i in plant.GetJointActuatorIndices()]
     assert joints == ["joint3", "joint2", "joint1"]
     pid = CartesianPid(plant, kp=KP, kd=KD, ki=KI)
@@ -319,3 +341,59 @@ def test_actuation_follows_the_actuator_order_not_the_joint_order():
     tau = J.T @ (np.array(KP) * error)
     assert np.all(np.abs(tau) < [30.0, 20.0, 5.0])
     np.testing.assert_allclose(pid.actuation_output.Eval(context), tau[::-1], atol=1e-9)
+
+
+def test_continuous_pid_reads_its_integral_anew(arm_plant):
+    """The continuous law's cache follows the continuous state: a new integral, a new torque."""
+    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI)
+    q = np.array([-0.45, 1.66, 0.36])
+    X, J = eq18(q)
+    context = _pid_context(pid, q, np.zeros(3), X, np.zeros(3), np.zeros(3))
+    np.testing.assert_allclose(pid.actuation_output.Eval(context), 0.0, atol=1e-12)
+    pid.set_integral(context, [1e-3, 0.0, 0.0])
+    np.testing.assert_allclose(pid.actuation_output.Eval(context), J.T @ [0.2, 0, 0], atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "kd, ki, tracking",
+    [(50.0, 0.5, 10.0), (0.0, 200.0, 0.01)],
+    ids=["sqrt(Kd/Ki)", "10 ms floor"],
+)
+def test_back_calculation_tracking_time(arm_plant, kd, ki, tracking):
+    """Tt = sqrt(Kd / Ki) on x (10 s for Kd = 50, Ki = 0.5), never under 10 ms (Kd = 0)."""
+    pid = CartesianPid(arm_plant, kp=KP, kd=[kd, 50.0, 5.0], ki=[ki, 200.0, 200.0])
+    q = np.array([-0.45, 1.66, 0.36])
+    X, J = eq18(q)
+    error = np.array([0.5, 0.0, 0.0])
+    context = _pid_context(pid, q, np.zeros(3), X + error, np.zeros(3), np.zeros(3))
+    torque = pid.actuation_output.Eval(context)
+    wrench_excess = np.linalg.solve(J.T, torque - J.T @ (np.array(KP) * error))
+    rate = pid.EvalTimeDerivatives(context).CopyToVector()
+    assert rate[0] == pytest.approx(error[0] + wrench_excess[0] / (ki * tracking), rel=1e-9)
+
+
+def test_cartesian_error_is_the_wrapped_pose_error_even_when_saturated(arm_plant):
+    """ec = Xc - h(q), angle wrapped; while saturated dz/dt differs from it, ec does not."""
+    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI)
+    q = np.array([-0.45, 1.66, 0.36])
+    X, _ = eq18(q)
+    commanded = X + [0.5, -0.01, 2 * math.pi + 0.002]
+    context = _pid_context(pid, q, np.zeros(3), commanded, np.zeros(3), np.zeros(3))
+    error = pid.cartesian_error(context)
+    np.testing.assert_allclose(error, [0.5, -0.01, 0.002], atol=1e-12)
+    assert not np.allclose(pid.EvalTimeDerivatives(context).CopyToVector(), error)
+
+
+def test_sampled_pid_latches_its_first_sample_at_t_0(arm_plant):
+    """Samples at t = 0, h, 2h (offset 0); 30 ms: 1 s is no whole number of periods, so no
+    other offset gives the same times. After 1.5 periods the held torque is the second
+    sample's, with the integral advanced once: J^T (Kp ec + Ki h ec)."""
+    period = 0.03
+    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI, period=period)
+    q = np.array([-0.45, 1.66, 0.36])
+    X, J = eq18(q)
+    error = np.array([1e-3, 0.0, 0.0])
+    context = _pid_context(pid, q, np.zeros(3), X + error, np.zeros(3), np.zeros(3))
+    Simulator(pid, context).AdvanceTo(1.5 * period)
+    expected = J.T @ (np.array(KP) * error + np.array(KI) * period * error)
+    np.testing.assert_allclose(pid.actuation_output.Eval(context), expected, rtol=1e-12)
