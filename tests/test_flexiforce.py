@@ -303,8 +303,71 @@ def test_linearize():
         ("linearity_error", -0.3),
         ("full_scale_force", 0.0),
         ("full_scale_force", "a lot"),
+        ("full_scale_force", None),
+        ("unloaded_conductance", float("inf")),
+        ("rail_voltage", V_OFFSET),
     ],
 )
 def test_bad_arguments_raise(argument, value):
     with pytest.raises(ValueError, match=argument):
         FlexiForceSensor(**{argument: value})
+
+
+@pytest.mark.parametrize(
+    "argument, value",
+    [
+        ("unloaded_conductance", 0.0),
+        ("unloaded_conductance", 2e-7),
+        ("linearity_error", 0.249),
+        ("linearity_error", -0.249),
+        ("rail_voltage", 0.01),
+        ("conductance_per_newton", 1e-9),
+        ("feedback_resistance", 0.5),
+        ("filter_cutoff_hz", 0.5),
+        ("full_scale_force", 0.5),
+    ],
+)
+def test_arguments_at_the_edge_of_their_range_are_accepted(argument, value):
+    """The allowed ranges include their closed ends (0 and 2e-7 S for G0) and stop just
+    inside their open ones (|e| < 0.25, V_rail > V_offset, the other constants > 0)."""
+    sensor = FlexiForceSensor(**{argument: value})
+    context = _context(sensor, voltage=sensor.unloaded_voltage)
+    assert _measured(sensor, context) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_bow_vanishes_above_full_scale_in_the_system_and_the_helper():
+    """u = min(F / F_fs, 1): above full scale (here 105 N, below saturation) the bow is zero,
+    so the reading is exact again, in the sensor's own law and in the analysis helper."""
+    sensor = FlexiForceSensor(linearity_error=0.03)
+    voltage = sensor.static_output_voltage(105.0)
+    assert voltage == pytest.approx(V_OFFSET + GAIN * 105.0, rel=1e-12)
+    context = _context(sensor, voltage=voltage, force=105.0)
+    assert _xdot(sensor, context) == pytest.approx(0.0, abs=1e-6)
+    assert _measured(sensor, context) == pytest.approx(105.0, abs=1e-9)
+
+
+def test_a_bow_of_one_newton_is_not_mistaken_for_none():
+    """linearity_error 0.0025 on 100 N: b = 4 e F_fs = 1 N, a 0.25 N error at 50 N."""
+    sensor = FlexiForceSensor(linearity_error=0.0025)
+    voltage = sensor.static_output_voltage(50.0)
+    assert sensor.calibrated_force(voltage) == pytest.approx(50.25, rel=1e-12)
+    context = _context(sensor, voltage=V_OFFSET, force=50.0)
+    assert _xdot(sensor, context) == pytest.approx(GAIN * 50.25 * POLE, rel=1e-12)
+
+
+def test_the_ideal_kind_has_no_state_to_integrate():
+    sensor = FlexiForceSensor(kind="ideal")
+    context = _context(sensor, force=3.0)
+    assert sensor.EvalTimeDerivatives(context).size() == 0
+
+
+def test_autodiff_reading_is_the_calibrated_voltage_plus_the_noise():
+    """The generic output law: dF_meas/dV = 1 / k and dF_meas/dn = 1."""
+    sensor_ad = FlexiForceSensor().ToAutoDiffXd()
+    context = sensor_ad.CreateDefaultContext()
+    context.SetContinuousState([AutoDiffXd(2.0, [1.0, 0.0])])
+    sensor_ad.contact_force_input.FixValue(context, [AutoDiffXd(10.0, [0.0, 0.0])])
+    sensor_ad.noise_input.FixValue(context, [AutoDiffXd(0.7, [0.0, 1.0])])
+    reading = sensor_ad.measured_force_output.Eval(context)[0]
+    assert reading.value() == pytest.approx((2.0 - V_OFFSET) / GAIN + 0.7, rel=1e-12)
+    np.testing.assert_allclose(reading.derivatives(), [1.0 / GAIN, 1.0], rtol=1e-12)
