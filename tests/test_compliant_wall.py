@@ -148,3 +148,36 @@ def test_a_moving_wall_in_autodiff_is_where_the_float_wall_is(arm_plant):
     wall_ad.estimated_state_input.FixValue(context, [AutoDiffXd(x) for x in np.r_[Q, 0, 0, 0]])
     force = wall_ad.contact_force_output.Eval(context)[0]
     assert force.value() == pytest.approx(expected, rel=1e-12)
+
+
+def test_a_wall_that_starts_and_stops_at_once_stays_put(arm_plant):
+    """motion_end = motion_start is allowed: the wall never moves."""
+    wall = CompliantWall(
+        arm_plant, position=0.15, stiffness=2e4, velocity=0.01, motion_start=2.0, motion_end=2.0
+    )
+    assert wall.position_at(5.0) == pytest.approx(0.15, abs=1e-15)
+
+
+def test_an_approaching_wall_reports_when_it_starts_and_stops(arm_plant):
+    """A negative velocity (a wall coming at the arm) moves it too: its start and end are
+    discontinuities for the integrator, as for a receding wall."""
+    wall = CompliantWall(
+        arm_plant, position=0.15, stiffness=2e4, velocity=-0.05, motion_start=2.5, motion_end=2.7
+    )
+    assert wall.discontinuity_times() == [2.5, 2.7]
+    assert wall.position_at(3.0) == pytest.approx(0.14, abs=1e-15)
+
+
+def test_autodiff_wall_does_not_pull_when_out_of_contact(arm_plant):
+    """1 mm short of the wall: zero force and zero slope in AutoDiffXd too (the wall is
+    unilateral whatever the scalar type)."""
+    from pydrake.autodiffutils import AutoDiffXd
+
+    tip = _tip_x(arm_plant, Q)
+    wall = CompliantWall(arm_plant, position=tip + 1e-3, stiffness=5e4).ToAutoDiffXd()
+    context = wall.CreateDefaultContext()
+    state = [AutoDiffXd(value, np.eye(6)[i]) for i, value in enumerate(np.r_[Q, 0, 0, 0])]
+    wall.estimated_state_input.FixValue(context, state)
+    force = wall.contact_force_output.Eval(context)[0]
+    assert force.value() == 0.0
+    np.testing.assert_array_equal(force.derivatives(), 0.0)
