@@ -306,6 +306,9 @@ def test_linearize():
         ("full_scale_force", None),
         ("unloaded_conductance", float("inf")),
         ("rail_voltage", V_OFFSET),
+        ("feedback_resistance", -150e3),
+        # Just past the datasheet's 5 MOhm: 1 / 4.9999999 MOhm = 2.00000004e-7 S.
+        ("unloaded_conductance", 1.0 / 4.9999999e6),
     ],
 )
 def test_bad_arguments_raise(argument, value):
@@ -356,9 +359,27 @@ def test_a_bow_of_one_newton_is_not_mistaken_for_none():
 
 
 def test_the_ideal_kind_has_no_state_to_integrate():
-    sensor = FlexiForceSensor(kind="ideal")
+    # The kind is compared by value: a string built at run time (from a YAML file, say).
+    sensor = FlexiForceSensor(kind="".join(["id", "eal"]))
     context = _context(sensor, force=3.0)
     assert sensor.EvalTimeDerivatives(context).size() == 0
+
+
+def test_a_bad_linearity_error_message_gives_the_open_range():
+    with pytest.raises(ValueError, match=r"linearity_error must be in \(-0.25, 0.25\); got 0.3"):
+        FlexiForceSensor(linearity_error=0.3)
+
+
+def test_the_helpers_return_a_float_for_a_float_and_an_array_for_an_array():
+    sensor = FlexiForceSensor()
+    assert isinstance(sensor.static_output_voltage(5.0), float)
+    assert isinstance(sensor.calibrated_force(0.5), float)
+    np.testing.assert_allclose(
+        sensor.static_output_voltage(np.array([0.0, 10.0])), [V_OFFSET, V_OFFSET + GAIN * 10.0]
+    )
+    np.testing.assert_allclose(
+        sensor.calibrated_force(np.array([V_OFFSET, 1.0])), [0.0, (1.0 - V_OFFSET) / GAIN]
+    )
 
 
 def test_autodiff_reading_is_the_calibrated_voltage_plus_the_noise():
