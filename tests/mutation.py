@@ -206,6 +206,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("targets", nargs="+", help=f"all, or of {sorted(settings['targets'])}")
     parser.add_argument("--report", action="store_true", help="report only, run nothing")
+    parser.add_argument(
+        "--equivalents", action="store_true", help="print the equivalent mutants as a table"
+    )
     parser.add_argument("--reset", action="store_true", help="start the sessions anew")
     parser.add_argument(
         "--retest", action="store_true", help="run the surviving mutants again (after new tests)"
@@ -216,6 +219,15 @@ def main(argv: list[str] | None = None) -> int:
         if name not in settings["targets"]:
             parser.error(f"unknown target {name!r}; one of {sorted(settings['targets'])}")
     os.chdir(ROOT)
+    if arguments.equivalents:
+        print("| module:line | mutation | why it is equivalent |")
+        print("| --- | --- | --- |")
+        for name in names:
+            for entry in settings["targets"][name].get("equivalent", []):
+                operator = entry["operator"].removeprefix("core/")
+                change = f"`{entry['mutant']}`" if "mutant" in entry else operator
+                print(f"| {name}:{entry['line']} | {change} | {entry['reason']} |")
+        return 0
     totals = dict(mutants=0, killed=0, survived=0, equivalent=0, pending=0)
     rows = []
     for name in names:
