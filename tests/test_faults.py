@@ -80,6 +80,27 @@ def test_sensor_fault_replaces_the_reading_only_inside_its_window():
             assert reported == expected
 
 
+def test_sensor_fault_readings_overlaps_and_checks():
+    """sensor_zero reads 0, sensor_saturated its value; where two faults overlap the first
+    listed wins; the AutoDiffXd copy (for Linearize) reads the same schedule."""
+    faults = [("sensor_zero", 1.0, 3.0, 0.0), ("sensor_saturated", 2.0, 4.0, 111.0)]
+    fault = SensorFault(faults)
+    fault_ad = fault.ToAutoDiffXd()
+    for system in (fault, fault_ad):
+        context = system.CreateDefaultContext()
+        system.measured_force_input.FixValue(context, [7.0])
+        for time, expected in ((0.5, 7.0), (1.0, 0.0), (2.5, 0.0), (3.0, 111.0), (4.0, 7.0)):
+            context.SetTime(time)
+            reported = system.reported_force_output.Eval(context)[0]
+            assert (reported if system is fault else reported.value()) == expected, time
+    assert fault.active_fault(2.5) == faults[0] and fault.active_fault(5.0) is None
+    with pytest.raises(ValueError, match="fault kind must be one of"):
+        SensorFault([("sensor_fire", 1.0, 2.0, 0.0)])
+    for start, end in ((2.0, 2.0), (2.0, 1.0), (math.nan, 2.0)):
+        with pytest.raises(ValueError, match="must be after start"):
+            SensorFault([("sensor_zero", start, end, 0.0)])
+
+
 def test_admittance_holds_its_reference_on_an_invalid_measurement():
     block = OptimalAdmittance(gamma=1e-5, alpha=0.1, stiffness=2500.0)
     context = block.CreateDefaultContext()
