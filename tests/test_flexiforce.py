@@ -349,13 +349,21 @@ def test_bow_vanishes_above_full_scale_in_the_system_and_the_helper():
     assert _measured(sensor, context) == pytest.approx(105.0, abs=1e-9)
 
 
-def test_a_bow_of_one_newton_is_not_mistaken_for_none():
-    """linearity_error 0.0025 on 100 N: b = 4 e F_fs = 1 N, a 0.25 N error at 50 N."""
-    sensor = FlexiForceSensor(linearity_error=0.0025)
-    voltage = sensor.static_output_voltage(50.0)
-    assert sensor.calibrated_force(voltage) == pytest.approx(50.25, rel=1e-12)
+@pytest.mark.parametrize("error", [0.0025, -0.0025, -0.03])
+def test_the_bow_bends_the_sensor_law_and_the_helper_alike(error):
+    """b = 4 e F_fs: +-1 N for e = +-0.0025 (a reading off by +-0.25 N at 50 N) and -12 N for
+    a sagging e = -0.03 (-3 N at 50 N), in the filter's input and in the helper."""
+    sensor = FlexiForceSensor(linearity_error=error)
+    bowed = 50.0 + error * 100.0
+    assert sensor.calibrated_force(sensor.static_output_voltage(50.0)) == pytest.approx(bowed)
     context = _context(sensor, voltage=V_OFFSET, force=50.0)
-    assert _xdot(sensor, context) == pytest.approx(GAIN * 50.25 * POLE, rel=1e-12)
+    assert _xdot(sensor, context) == pytest.approx(GAIN * bowed * POLE, rel=1e-12)
+
+
+def test_arguments_are_keyword_only():
+    """Nine numbers of different units: a positional call could swap them unnoticed."""
+    with pytest.raises(TypeError):
+        FlexiForceSensor("flexiforce", 6.0e-7)
 
 
 def test_the_ideal_kind_has_no_state_to_integrate():
