@@ -53,7 +53,7 @@ class ScenarioError(ValueError):
 def _default_simulator_config() -> SimulatorConfig:
     # The loop is stiff (wall up to 1e5 N/m, Kd = 5 on a light last link: a pole near
     # -1e4 1/s); an implicit integrator with error control takes a few hundred steps where
-    # an explicit one takes ~150,000. See README, "Integrator".
+    # an explicit one takes ~150,000. See docs/speed.md, "Integrator".
     return SimulatorConfig(
         integration_scheme="radau3",
         accuracy=1e-4,
@@ -163,7 +163,7 @@ class ControllerConfig:
     # fixed_reference: relative error of its stiffness estimate (0.1 = 10 % too stiff).
     stiffness_error: float = 0.0
     # Baseline gains: "matched" derives them from the paper's law (same force-loop
-    # crossover Kp Gamma K, README "Comparison"); "manual" takes the values below.
+    # crossover Kp Gamma K, docs/comparison.md); "manual" takes the values below.
     tuning: str = "matched"
     # classical_admittance and adaptive_impedance (manual tuning): virtual mass, kg,
     mass: float = 0.16
