@@ -307,6 +307,7 @@ def test_linearize():
         ("unloaded_conductance", float("inf")),
         ("rail_voltage", V_OFFSET),
         ("feedback_resistance", -150e3),
+        ("full_scale_force", -100.0),
         # Just past the datasheet's 5 MOhm: 1 / 4.9999999 MOhm = 2.00000004e-7 S.
         ("unloaded_conductance", 1.0 / 4.9999999e6),
     ],

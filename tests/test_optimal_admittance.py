@@ -183,6 +183,7 @@ def test_autodiff_gain_of_output_to_force():
         (dict(force_axes=[]), "force_axes"),
         (dict(force_axes=[0, 0]), "force_axes must be distinct"),
         (dict(force_axes=[-1]), "force_axes must be distinct"),
+        (dict(force_axes=[4]), r"force_axes must be distinct indices in \[0, 2\], got \[4\]"),
         (dict(gamma=math.inf), "gamma must be finite"),
         (dict(alpha=math.nan), "alpha must be finite"),
         (dict(period=-1.0), "period"),
