@@ -168,19 +168,33 @@ def test_classical_admittance_on_two_axes_keeps_each_axis_its_own_gains():
     np.testing.assert_allclose(block.reference_offset_output.Eval(context), [0.002, 0.0, 0.01])
 
 
-def test_adaptive_impedance_on_two_axes_keeps_each_axis_its_own_gains():
-    """State (x0, x1, v0, v1, Phi0, Phi1): m a = E + b Phi - b v, Phi' = rate E / b."""
+def test_adaptive_impedance_on_three_axes_keeps_each_axis_its_own_gains():
+    """State (x0, x1, x2, v0, v1, v2, Phi0, Phi1, Phi2): m a = E + b Phi - b v,
+    Phi' = rate E / b, each axis with its own m, b and rate."""
     block = AdaptiveImpedance(
-        mass=[0.5, 2.0], damping=[40.0, 10.0], adaptation_rate=[10.0, 5.0], force_axes=[0, 1]
+        mass=[0.5, 2.0, 1.0],
+        damping=[40.0, 10.0, 20.0],
+        adaptation_rate=[10.0, 5.0, 2.0],
+        force_axes=[0, 1, 2],
     )
-    assert block.gains["adaptation_rate"].tolist() == [10.0, 5.0]
-    context = _fix_axes(block, [3.0, 1.0], [5.0, 0.0], [0.001, 0.002, 0.01, -0.1, 0.02, 0.3])
+    assert block.gains["adaptation_rate"].tolist() == [10.0, 5.0, 2.0]
+    state = [0.001, 0.002, 0.003, 0.01, -0.1, 0.0, 0.02, 0.3, 0.0]
+    context = _fix_axes(block, [3.0, 1.0, 4.0], [5.0, 0.0, 0.0], state)
     # Axis 0: (2 + 0.8 - 0.4) / 0.5 = 4.8, Phi' = 10 * 2 / 40 = 0.5.
     # Axis 1: (-1 + 3 + 1) / 2 = 1.5, Phi' = 5 * -1 / 10 = -0.5.
+    # Axis 2: (-4 + 0 - 0) / 1 = -4, Phi' = 2 * -4 / 20 = -0.4.
     np.testing.assert_allclose(
-        block.EvalTimeDerivatives(context).CopyToVector(), [0.01, -0.1, 4.8, 1.5, 0.5, -0.5]
+        block.EvalTimeDerivatives(context).CopyToVector(),
+        [0.01, -0.1, 0.0, 4.8, 1.5, -4.0, 0.5, -0.5, -0.4],
     )
-    np.testing.assert_allclose(block.reference_offset_output.Eval(context), [0.001, 0.002, 0.0])
+    np.testing.assert_allclose(block.reference_offset_output.Eval(context), [0.001, 0.002, 0.003])
+
+
+def test_classical_admittance_is_a_mass_damper_by_default():
+    """Without stiffness: Ks = 0, so the offset itself does not pull back (a = (E - D v) / M)."""
+    block = ClassicalAdmittance(mass=0.5, damping=40.0)
+    context = _fix(block, measured=3.0, desired=5.0, state=[0.002, 0.1])
+    np.testing.assert_allclose(block.EvalTimeDerivatives(context).CopyToVector(), [0.1, -4.0])
 
 
 def test_fixed_reference_on_two_axes_subtracts_each_axis_own_desired_position():
