@@ -48,7 +48,7 @@ from pydrake.systems.framework import (
     System,
 )
 
-from admittance.diagrams.closed_loop import AddPlanarArm
+from admittance.diagrams.closed_loop import AddScenarioArm
 from admittance.diagrams.simulation import SimulationResult
 
 __all__ = [
@@ -201,7 +201,7 @@ def write_meshcat_replay(result: SimulationResult, path: str | os.PathLike) -> P
     reference_length = scenario.force_reference * meters_per_newton
 
     builder = DiagramBuilder()
-    plant, scene_graph = AddPlanarArm(builder, scenario)
+    plant, scene_graph = AddScenarioArm(builder, scenario.arm)
     meshcat = _quiet_meshcat()
     visualizer = MeshcatVisualizer.AddToBuilder(
         builder,

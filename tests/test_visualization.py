@@ -17,7 +17,7 @@ import pytest
 from pydrake.systems.framework import DiagramBuilder
 
 import admittance.diagrams.visualization as visualization
-from admittance.diagrams.closed_loop import AddPlanarArm, BuildClosedLoop
+from admittance.diagrams.closed_loop import AddScenarioArm, BuildClosedLoop
 from admittance.diagrams.scenario import load_scenario
 from admittance.diagrams.simulation import run_scenario
 from admittance.diagrams.visualization import (
@@ -95,7 +95,7 @@ def test_replay_poses_the_arm_at_the_logged_joint_positions(replay, moving_wall_
     assert len(times) == 0.5 * visualization.REPLAY_FRAMES_PER_SECOND + 1
 
     builder = DiagramBuilder()
-    plant, _ = AddPlanarArm(builder, moving_wall_result.scenario)
+    plant, _ = AddScenarioArm(builder, moving_wall_result.scenario.arm)
     context = plant.CreateDefaultContext()
     arm_paths = [path for path, prop in tracks if "planar_arm/link" in path and prop == "position"]
     assert sorted(p.rsplit("/", 1)[-1] for p in arm_paths) == ["link1", "link2", "link3"]
