@@ -410,13 +410,12 @@ def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
 
     if hasattr(loop.admittance, "set_initial_force_error"):
         # The reading before any injected sensor fault: the sensor's, or the true force.
-        reader = loop.sensor if loop.sensor is not None else loop.wall
         reading = (
-            loop.sensor.measured_force_output
-            if loop.sensor is not None
-            else loop.wall.contact_force_output
+            loop.wall.contact_force_output
+            if loop.sensor is None
+            else loop.sensor.measured_force_output
         )
-        measured = reading.Eval(reader.GetMyContextFromRoot(context))
+        measured = reading.Eval(reading.get_system().GetMyContextFromRoot(context))
         admittance_context = loop.admittance.GetMyMutableContextFromRoot(context)
         loop.admittance.set_initial_force_error(
             admittance_context, np.array([scenario.force_reference]) - measured

@@ -16,12 +16,18 @@
 * the FLOOR: the bare MultibodyPlant of the same URDF (``AddPlanarArm``) held at the
   closed loop's initial configuration by constant gravity torques, simulated for the same
   duration with the same SimulatorConfig; and the ratio closed loop / floor;
+* one derivative evaluation alone, of the closed loop and of the floor at their initial
+  states, timed in CPU time of this process (``time.process_time``, the least of many
+  rounds), so that other processes on a shared machine barely move it: the cost per
+  evaluation without the integrator's own work and the logging;
 * the logging cost: one run with the loggers off (or, for a scenario that logs
   periodically, logging every step), against the timed median;
 * memory: the process's peak resident set size (``ru_maxrss``) and the tracemalloc peak of
   the warm-up run.
 
-``format_benchmark(report)`` renders the report as a readable table.
+``format_benchmark(report, before)`` renders the report as a readable table; given the
+report of an earlier run (``--before FILE``: the same scenario on other code, measured the
+same day), it also prints both side by side, the per-callback profile included.
 """
 
 from __future__ import annotations
@@ -29,6 +35,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import importlib.metadata
+import json
 import os
 import platform
 import re
@@ -38,6 +45,7 @@ import sys
 import time
 import tracemalloc
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
@@ -48,13 +56,14 @@ from admittance.diagrams.closed_loop import AddPlanarArm, BuildClosedLoop, SetIn
 from admittance.diagrams.scenario import LoggingConfig, Scenario
 from admittance.diagrams.simulation import run_scenario
 
-__all__ = ["format_benchmark", "run_benchmark"]
+__all__ = ["format_benchmark", "load_benchmark_report", "run_benchmark"]
 
 # Methods of the project's LeafSystems that Drake calls back: DoCalcTimeDerivatives and
 # other Do* overrides, output/cache calcs (_Calc*, _calc*) and discrete updates (*Update*).
 _CALLBACK_NAME = re.compile(r"^(Do[A-Z]\w*|_\w*[Cc]alc\w*|_\w*Update\w*)$")
-# How many callbacks the report lists (the most expensive first).
-_TOP_CALLBACKS = 12
+# Rounds and evaluations per round of the single-evaluation timing.
+_EVALUATION_ROUNDS = 25
+_EVALUATIONS_PER_ROUND = 200
 
 
 # --- timing helpers ---------------------------------------------------------------------
@@ -84,6 +93,7 @@ class _Run:
     """One simulated run: AdvanceTo's wall time and the integrator's statistics."""
 
     wall_time: float
+    cpu_time: float  # this process's CPU time over the same AdvanceTo, s
     steps: int
     derivative_evaluations: int
     statistics: dict
@@ -102,15 +112,17 @@ def _advance(
     context = simulator.get_mutable_context()
     initialize(context)
     simulator.Initialize()
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     simulator.AdvanceTo(scenario.duration)
     wall_time = time.perf_counter() - start
+    cpu_time = time.process_time() - cpu_start
     integrator = simulator.get_integrator()
     final_positions = None
     if plant is not None:
         final_positions = plant.GetPositions(plant.GetMyContextFromRoot(context)).copy()
     return _Run(
         wall_time=wall_time,
+        cpu_time=cpu_time,
         steps=int(integrator.get_num_steps_taken()),
         derivative_evaluations=int(integrator.get_num_derivative_evaluations()),
         statistics=_integrator_statistics(simulator),
@@ -227,6 +239,41 @@ def _profile_callbacks(scenario: Scenario) -> tuple[_Run, _CallbackProfiler, dic
 # --- the floor --------------------------------------------------------------------------
 
 
+def _time_one_evaluation(diagram: Diagram, context: Context) -> float:
+    """CPU time of one derivative evaluation at the context's state, s.
+
+    The state is set again before each evaluation (with a time a nanosecond later), so
+    that every cached value that depends on it is recomputed, as in an integrator step.
+    The least of several rounds, in this process's CPU time.
+    """
+    state = context.get_continuous_state_vector().CopyToVector()
+    derivatives = diagram.AllocateTimeDerivatives()
+    start_time = context.get_time()
+    best = np.inf
+    for _ in range(_EVALUATION_ROUNDS):
+        start = time.process_time()
+        for k in range(_EVALUATIONS_PER_ROUND):
+            context.SetTimeAndContinuousState(start_time + 1e-9 * k, state)
+            diagram.CalcTimeDerivatives(context, derivatives)
+        best = min(best, (time.process_time() - start) / _EVALUATIONS_PER_ROUND)
+    return best
+
+
+def _time_one_evaluation_of_each(scenario: Scenario, positions: np.ndarray) -> dict:
+    """One derivative evaluation of the closed loop and of the floor, interleaved."""
+    loop = BuildClosedLoop(scenario)
+    loop_context = loop.diagram.CreateDefaultContext()
+    SetInitialConditions(loop, loop_context)
+    floor, plant = _build_floor(scenario, positions)
+    floor_context = floor.CreateDefaultContext()
+    plant.SetPositions(plant.GetMyMutableContextFromRoot(floor_context), positions)
+    closed, bare = np.inf, np.inf
+    for _ in range(2):  # interleaved, so that both see the same machine
+        closed = min(closed, _time_one_evaluation(loop.diagram, loop_context))
+        bare = min(bare, _time_one_evaluation(floor, floor_context))
+    return {"closed_loop_us": 1e6 * closed, "floor_us": 1e6 * bare, "ratio": closed / bare}
+
+
 def _initial_positions(scenario: Scenario) -> np.ndarray:
     """The closed loop's initial joint positions (SetInitialConditions)."""
     loop = BuildClosedLoop(scenario)
@@ -302,7 +349,8 @@ def run_benchmark(scenario: Scenario, repeat: int = 3) -> dict:
     Returns:
         A JSON-serialisable dict (see ``format_benchmark`` for its reading): ``scenario``,
         ``repeat``, ``closed_loop``, ``python``, ``floor``, ``ratio_to_floor``,
-        ``per_evaluation_ratio_to_floor``, ``logging``, ``memory``, ``environment``.
+        ``per_evaluation_ratio_to_floor``, ``one_evaluation``, ``logging``, ``memory``,
+        ``environment``.
         Times are in seconds unless a key says otherwise.
 
     Raises:
@@ -340,6 +388,7 @@ def run_benchmark(scenario: Scenario, repeat: int = 3) -> dict:
             )
         )
     wall = _spread([run.wall_time for run in runs])
+    cpu = _spread([run.cpu_time for run in runs])
     median = wall["median"]
     timed = runs[0]
 
@@ -365,9 +414,11 @@ def run_benchmark(scenario: Scenario, repeat: int = 3) -> dict:
     _advance_floor(scenario, positions)  # warm-up
     floor_runs = [_advance_floor(scenario, positions) for _ in range(repeat)]
     floor_wall = _spread([run.wall_time for run in floor_runs])
+    floor_cpu = _spread([run.cpu_time for run in floor_runs])
     floor = floor_runs[0]
     floor_per_evaluation = _per(floor_wall["median"], floor.derivative_evaluations)
     per_evaluation = _per(median, timed.derivative_evaluations)
+    one_evaluation = _time_one_evaluation_of_each(scenario, positions)
 
     # Logging cost: one run with the other logging setting.
     if scenario.logging.period == 0.0:
@@ -405,6 +456,7 @@ def run_benchmark(scenario: Scenario, repeat: int = 3) -> dict:
         "repeat": repeat,
         "closed_loop": {
             "wall_time": wall,
+            "cpu_time": cpu,
             "build_time": statistics.median(build_times),
             "real_time_factor": _per(scenario.duration, median),
             "integrator_steps": timed.steps,
@@ -434,10 +486,11 @@ def run_benchmark(scenario: Scenario, repeat: int = 3) -> dict:
                 python_fraction * median if python_fraction is not None else None
             ),
             "profiled_wall_time": profiled.wall_time,
-            "callbacks": callbacks[:_TOP_CALLBACKS],
+            "callbacks": callbacks,
         },
         "floor": {
             "wall_time": floor_wall,
+            "cpu_time": floor_cpu,
             "real_time_factor": _per(scenario.duration, floor_wall["median"]),
             "integrator_steps": floor.steps,
             "derivative_evaluations": floor.derivative_evaluations,
@@ -451,6 +504,14 @@ def run_benchmark(scenario: Scenario, repeat: int = 3) -> dict:
         "per_evaluation_ratio_to_floor": (
             _per(per_evaluation, floor_per_evaluation) if floor_per_evaluation else None
         ),
+        # The same ratios in this process's CPU time: on a shared machine, other processes
+        # stretch wall times (short runs most), CPU times far less.
+        "cpu_ratio_to_floor": _per(cpu["median"], floor_cpu["median"]),
+        "cpu_per_evaluation_ratio_to_floor": _per(
+            _per(cpu["median"], timed.derivative_evaluations),
+            _per(floor_cpu["median"], floor.derivative_evaluations),
+        ),
+        "one_evaluation": one_evaluation,
         "logging": logging,
         "memory": {
             "peak_rss_mb": _peak_rss_mb(),
@@ -486,8 +547,107 @@ def _number(value: float | None, digits: int = 3) -> str:
     return f"{value:.{digits}g}"
 
 
-def format_benchmark(report: dict) -> str:
-    """A readable table of a ``run_benchmark`` report."""
+def load_benchmark_report(path: str | os.PathLike, scenario: Scenario) -> dict:
+    """The report of an earlier ``admittance bench --json`` run of the same scenario.
+
+    Raises:
+        ValueError: one line naming the file: it cannot be read, is not a benchmark
+            report, or measured another scenario (name, duration or sensor).
+    """
+    try:
+        report = json.loads(Path(path).read_text())
+        measured = report["scenario"]
+        report["closed_loop"], report["python"]["callbacks"], report["ratio_to_floor"]
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        reason = error.strerror if isinstance(error, OSError) else "not a benchmark report"
+        raise ValueError(f"--before {path}: {reason}") from None
+    wanted = {"name": scenario.name, "duration": scenario.duration, "sensor": scenario.sensor.kind}
+    found = {key: measured.get(key) for key in wanted}
+    if found != wanted:
+        raise ValueError(
+            f"--before {path}: a benchmark of {found['name']} ({found['duration']} s, sensor "
+            f"{found['sensor']}), not of {wanted['name']} ({wanted['duration']} s, sensor "
+            f"{wanted['sensor']})"
+        )
+    return report
+
+
+def _format_before(report: dict, before: dict) -> list[str]:
+    """The earlier run beside this one: headline ratios and the per-callback profile."""
+    now_loop, before_loop = report["closed_loop"], before["closed_loop"]
+    now_python, before_python = report["python"], before["python"]
+
+    def speedup(earlier: float | None, later: float | None) -> str:
+        return f"{earlier / later:.2f} x" if earlier and later else "-"
+
+    lines = [
+        "",
+        "against the earlier run (--before; each run's ratios use its own floor):",
+        f"  {'':40}{'before':>12}{'now':>12}{'before / now':>16}",
+    ]
+
+    def row(label: str, earlier, later, ratio: bool = True) -> None:
+        lines.append(
+            f"  {label:40}{_number(earlier):>12}{_number(later):>12}"
+            + (f"{speedup(earlier, later):>16}" if ratio else "")
+        )
+
+    row("wall time / floor (x)", before["ratio_to_floor"], report["ratio_to_floor"])
+    row(
+        "per derivative evaluation / floor (x)",
+        before["per_evaluation_ratio_to_floor"],
+        report["per_evaluation_ratio_to_floor"],
+    )
+    row("CPU time / floor (x)", before.get("cpu_ratio_to_floor"), report["cpu_ratio_to_floor"])
+    row(
+        "  per derivative evaluation (x)",
+        before.get("cpu_per_evaluation_ratio_to_floor"),
+        report["cpu_per_evaluation_ratio_to_floor"],
+    )
+    before_one, now_one = before.get("one_evaluation") or {}, report.get("one_evaluation") or {}
+    row("one evaluation alone / floor (x)", before_one.get("ratio"), now_one.get("ratio"))
+    row(
+        "wall time per derivative eval. (us)",
+        before_loop["wall_time_per_derivative_evaluation_us"],
+        now_loop["wall_time_per_derivative_evaluation_us"],
+    )
+    row(
+        "Python callbacks per evaluation",
+        before_python["callbacks_per_derivative_evaluation"],
+        now_python["callbacks_per_derivative_evaluation"],
+    )
+    row("integrator steps", before_loop["integrator_steps"], now_loop["integrator_steps"], False)
+    row(
+        "derivative evaluations",
+        before_loop["derivative_evaluations"],
+        now_loop["derivative_evaluations"],
+        False,
+    )
+    lines += [
+        "",
+        "  Python callbacks before and now (calls per derivative evaluation, mean time; "
+        "profiling runs)",
+        f"  {'callback':46}{'before':>10}{'mean':>10}{'now':>10}{'mean':>10}",
+    ]
+    earlier = {entry["name"]: entry for entry in before_python["callbacks"]}
+    later = {entry["name"]: entry for entry in now_python["callbacks"]}
+
+    def cells(entry: dict | None) -> str:
+        if entry is None:
+            return f"{'-':>10}{'':>10}"
+        return (
+            f"{_number(entry['per_derivative_evaluation']):>10}"
+            f"{_seconds(1e-6 * entry['mean_us']):>10}"
+        )
+
+    names = list(earlier) + [name for name in later if name not in earlier]
+    for name in names:
+        lines.append(f"  {name:46}{cells(earlier.get(name))}{cells(later.get(name))}")
+    return lines
+
+
+def format_benchmark(report: dict, before: dict | None = None) -> str:
+    """A readable table of a ``run_benchmark`` report (and of an earlier one beside it)."""
     scenario = report["scenario"]
     loop = report["closed_loop"]
     floor = report["floor"]
@@ -515,6 +675,11 @@ def format_benchmark(report: dict) -> str:
         "  min / max",
         f"{_seconds(loop['wall_time']['min'])} / {_seconds(loop['wall_time']['max'])}",
         f"{_seconds(floor['wall_time']['min'])} / {_seconds(floor['wall_time']['max'])}",
+    )
+    row(
+        "AdvanceTo CPU time, median",
+        _seconds(loop["cpu_time"]["median"]),
+        _seconds(floor["cpu_time"]["median"]),
     )
     row(
         "real-time factor",
@@ -545,6 +710,8 @@ def format_benchmark(report: dict) -> str:
         f"closed loop / floor: {_number(report['ratio_to_floor'])} x in wall time, "
         f"{_number(report['per_evaluation_ratio_to_floor'])} x per derivative evaluation "
         f"(floor drift {floor['max_joint_drift']:.1g} rad)",
+        f"  in CPU time: {_number(report['cpu_ratio_to_floor'])} x, "
+        f"{_number(report['cpu_per_evaluation_ratio_to_floor'])} x per derivative evaluation",
         f"integrator: {_number(integrator.get('num_newton_raphson_iterations'))} Newton "
         f"iterations, {_number(integrator.get('num_jacobian_evaluations'))} Jacobians "
         f"({_number(integrator.get('num_derivative_evaluations_for_jacobian'))} derivative "
@@ -555,6 +722,13 @@ def format_benchmark(report: dict) -> str:
         f"(substep failures), smallest step "
         f"{_seconds(integrator.get('smallest_adapted_step_size_taken'))}",
     ]
+    one = report.get("one_evaluation")
+    if one is not None:
+        lines.append(
+            f"one derivative evaluation alone (CPU time, least of {_EVALUATION_ROUNDS} rounds):"
+            f" closed loop {_seconds(1e-6 * one['closed_loop_us'])}, floor "
+            f"{_seconds(1e-6 * one['floor_us'])}, {_number(one['ratio'])} x"
+        )
     if not loop["deterministic"]:
         lines.append("warning: the runs did not take the same steps (non-deterministic loop)")
     fraction = python["fraction_of_wall_time"]
@@ -593,6 +767,8 @@ def format_benchmark(report: dict) -> str:
         f"force check (warm-up): peak {_number(loop['peak_force'])} N, contact losses "
         f"{_number(loop['contact_losses'])}",
     ]
+    if before is not None:
+        lines += _format_before(report, before)
     environment = report["environment"]
     lines.append(
         f"Python {environment['python']}, drake {environment['drake']}, "

@@ -5,6 +5,7 @@
     admittance diagram   [SCENARIO] [--set KEY=VALUE ...] --out FILE
     admittance compare   [SCENARIO] [--set KEY=VALUE ...] [--controllers K,...] [--out DIR]
     admittance bench     [SCENARIO] [--set KEY=VALUE ...] [--repeat N] [--json FILE]
+                         [--before FILE]
     admittance sweep     [SCENARIO] [--set KEY=VALUE ...] [--grid KEY=SPEC ...]
                          [--random KEY=DIST ...] [--samples N] [--seed S] [--workers N]
                          [--engine local|dask] [--scheduler ADDRESS] --out DIR [--force]
@@ -97,13 +98,23 @@ def _cmd_diagram(args: argparse.Namespace) -> int:
 def _cmd_bench(args: argparse.Namespace) -> int:
     import json
 
-    from admittance.diagrams.app.bench import format_benchmark, run_benchmark
+    from admittance.diagrams.app.bench import (
+        format_benchmark,
+        load_benchmark_report,
+        run_benchmark,
+    )
 
     scenario = load_scenario(args.scenario, args.overrides)
     if args.repeat < 1:
         raise ScenarioError(f"--repeat {args.repeat}: must be an integer >= 1")
+    before = None
+    if args.before:
+        try:
+            before = load_benchmark_report(args.before, scenario)
+        except ValueError as error:
+            raise ScenarioError(str(error)) from None
     report = run_benchmark(scenario, repeat=args.repeat)
-    print(format_benchmark(report))
+    print(format_benchmark(report, before))
     if args.json:
         path = Path(args.json)
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -266,6 +277,12 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scenario_arguments(bench)
     bench.add_argument("--repeat", type=int, default=3, help="timed runs (default 3)")
     bench.add_argument("--json", metavar="FILE", help="also write the report as JSON")
+    bench.add_argument(
+        "--before",
+        metavar="FILE",
+        help="the --json report of an earlier run of the same scenario (e.g. on the code "
+        "before a change), printed beside this one with its per-callback profile",
+    )
     bench.set_defaults(handler=_cmd_bench)
 
     sweep = commands.add_parser(
