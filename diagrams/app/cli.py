@@ -10,27 +10,65 @@
                          [--random KEY=DIST ...] [--samples N] [--seed S] [--workers N]
                          [--engine local|dask] [--scheduler ADDRESS] --out DIR [--force]
 
-Errors in the input print one line naming the key and exit with status 2; a run that fails
-(a diverging simulation) prints one line and exits with status 1.
+Results and summaries go to stdout, progress to stderr (``--quiet`` silences it). Errors
+in the input print one line naming the key and exit with status 2; a run that fails (a
+diverging simulation) prints one line and exits with status 1; Ctrl-C at any moment exits
+with status 130 after one line.
+
+This module imports only the standard library at the top: Drake, numpy and matplotlib are
+imported inside :func:`main`, so that a Ctrl-C while they load is handled like any other.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import sys
 from pathlib import Path
 
-from admittance.diagrams.app.result_folder import (
-    OutputExistsError,
-    atomic_write_text,
-    check_output_dir,
-)
-from admittance.diagrams.scenario import ScenarioError, builtin_scenario_names, load_scenario
+from admittance.diagrams.app.interrupts import sigint_held_back
 
-DEFAULT_SCENARIO = "paper_stiffness_step"
-EXIT_INPUT_ERROR = 2
 EXIT_RUN_FAILED = 1
+EXIT_INPUT_ERROR = 2
+EXIT_INTERRUPTED = 130
+DEFAULT_SCENARIO = "paper_stiffness_step"
+# The built-in scenarios (the YAML files of admittance.diagrams.scenarios), listed without
+# importing the scenario module (and Drake) for --help.
+_SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
+# The most timed runs `bench --repeat` takes (each one is a whole simulation).
+MAX_REPEAT = 100
+
+# The extension modules of Drake that the project imports (tests/test_layout.py checks the
+# list against the code). They load with Ctrl-C held back: their C++ initialization would
+# turn a KeyboardInterrupt into "ImportError: initialization failed".
+DRAKE_MODULES = (
+    "pydrake.autodiffutils",
+    "pydrake.common",
+    "pydrake.common.cpp_param",
+    "pydrake.common.value",
+    "pydrake.common.yaml",
+    "pydrake.geometry",
+    "pydrake.math",
+    "pydrake.multibody.math",
+    "pydrake.multibody.parsing",
+    "pydrake.multibody.plant",
+    "pydrake.multibody.tree",
+    "pydrake.symbolic",
+    "pydrake.systems.analysis",
+    "pydrake.systems.framework",
+    "pydrake.systems.primitives",
+    "pydrake.systems.scalar_conversion",
+)
+
+EXIT_STATUS = """\
+exit status:
+  0    done
+  1    the run failed (a simulation diverged, a worker process died); one line on stderr
+  2    bad input (a scenario key or value, a flag, a file, an --out folder); one line on
+       stderr, nothing written
+  130  interrupted (Ctrl-C or SIGTERM); one line on stderr, nothing half-written
+"""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -40,12 +78,16 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_INPUT_ERROR, f"{self.prog}: error: {message}\n")
 
 
-def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
+def _builtin_names() -> list[str]:
+    return sorted(path.stem for path in _SCENARIO_DIR.glob("*.yaml"))
+
+
+def _add_common_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "scenario",
         nargs="?",
         default=DEFAULT_SCENARIO,
-        help=f"built-in name ({', '.join(builtin_scenario_names())}) or a YAML path "
+        help=f"built-in name ({', '.join(_builtin_names())}) or a YAML path "
         f"(default: {DEFAULT_SCENARIO})",
     )
     parser.add_argument(
@@ -56,46 +98,66 @@ def _add_scenario_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="KEY=VALUE",
         help="override a scenario key, e.g. --set wall.stiffness=2e4 (repeatable)",
     )
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
 
 
-def _cmd_simulate(args: argparse.Namespace) -> int:
+def _error(message: str) -> None:
+    print(f"admittance: error: {message}", file=sys.stderr)
+
+
+# --- the subcommands ----------------------------------------------------------------------
+
+
+def _cmd_simulate(args: argparse.Namespace, progress) -> int:
+    from admittance.diagrams.app.result_folder import check_output_dir, check_writable
     from admittance.diagrams.app.simulate import summary, write_results
+    from admittance.diagrams.scenario import load_scenario
     from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
 
     scenario = load_scenario(args.scenario, args.overrides)
     out = Path(args.out) if args.out else Path("results") / scenario.name
     check_output_dir(out, overwrite=args.force)
+    if args.meshcat_html:
+        check_writable(args.meshcat_html, "--meshcat-html")
     try:
-        result = run_scenario(scenario)
+        result = run_scenario(
+            scenario, progress=progress.simulation(scenario.name, scenario.duration)
+        )
     except SimulationDivergedError as diverged:
         # Keep what was logged, marked failed (metrics.json: "failed": true).
+        progress(f"writing the partial result to {out}/")
         write_results(diverged.result, out, overwrite=args.force)
-        print(f"admittance: error: {diverged} (partial, failed result in {out}/)", file=sys.stderr)
+        _error(f"{diverged} (partial, failed result in {out}/)")
         return EXIT_RUN_FAILED
-    write_results(result, out, overwrite=args.force)
+    progress(f"writing {out}/")
+    folder = write_results(result, out, overwrite=args.force)
     print(summary(result))
-    print(f"wrote {out}/: timeseries.csv, metrics.json, scenario.yaml, fig5-7 PNG")
+    print(folder.describe(out))
     if args.meshcat_html:
         from admittance.diagrams.visualization import write_meshcat_replay
 
+        progress(f"writing the Meshcat replay {args.meshcat_html}")
         print(f"wrote {write_meshcat_replay(result, args.meshcat_html)} (Meshcat replay)")
     return 0
 
 
-def _cmd_diagram(args: argparse.Namespace) -> int:
+def _cmd_diagram(args: argparse.Namespace, progress) -> int:
+    from admittance.diagrams.app.result_folder import check_writable
     from admittance.diagrams.closed_loop import BuildClosedLoop
+    from admittance.diagrams.scenario import ScenarioError, load_scenario
     from admittance.diagrams.visualization import write_diagram_picture
 
     scenario = load_scenario(args.scenario, args.overrides)
     suffix = Path(args.out).suffix.lower()
     if suffix not in (".svg", ".png", ".dot"):
         raise ScenarioError(f"--out {args.out}: unsupported picture format; use .svg, .png or .dot")
+    check_writable(args.out)
     loop = BuildClosedLoop(scenario)
     print(f"wrote {write_diagram_picture(loop.diagram, args.out)}")
     return 0
 
 
-def _cmd_bench(args: argparse.Namespace) -> int:
+def _cmd_bench(args: argparse.Namespace, progress) -> int:
     import json
 
     from admittance.diagrams.app.bench import (
@@ -103,17 +165,26 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         load_benchmark_report,
         run_benchmark,
     )
+    from admittance.diagrams.app.result_folder import atomic_write_text, check_writable
+    from admittance.diagrams.closed_loop import CheckScenarioStarts
+    from admittance.diagrams.scenario import ScenarioError, load_scenario
 
+    if not 1 <= args.repeat <= MAX_REPEAT:
+        raise ScenarioError(
+            f"--repeat {args.repeat}: must be an integer in [1, {MAX_REPEAT}] (each is a "
+            "whole simulation)"
+        )
     scenario = load_scenario(args.scenario, args.overrides)
-    if args.repeat < 1:
-        raise ScenarioError(f"--repeat {args.repeat}: must be an integer >= 1")
     before = None
     if args.before:
         try:
             before = load_benchmark_report(args.before, scenario)
         except ValueError as error:
             raise ScenarioError(str(error)) from None
-    report = run_benchmark(scenario, repeat=args.repeat)
+    if args.json:
+        check_writable(args.json, "--json")
+    CheckScenarioStarts(scenario)
+    report = run_benchmark(scenario, repeat=args.repeat, progress=progress)
     print(format_benchmark(report, before))
     if args.json:
         path = Path(args.json)
@@ -123,53 +194,80 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_compare(args: argparse.Namespace) -> int:
-    from admittance.diagrams.app.compare import compare_controllers, format_table, write_comparison
-    from admittance.diagrams.force_controllers import baseline_gains
-    from admittance.diagrams.scenario import CONTROLLER_KINDS
+def _controller_kinds(text: str | None) -> list[str]:
+    """The --controllers list, checked: known kinds, each once."""
+    from admittance.diagrams.scenario import CONTROLLER_KINDS, ScenarioError
 
-    kinds = [k.strip() for k in args.controllers.split(",")] if args.controllers else None
-    for kind in kinds or []:
+    if text is None:
+        return list(CONTROLLER_KINDS)
+    kinds = [kind.strip() for kind in text.split(",")]
+    for index, kind in enumerate(kinds):
         if kind not in CONTROLLER_KINDS:
             raise ScenarioError(
                 f"--controllers: {kind!r} is not a controller; allowed: "
                 + ", ".join(CONTROLLER_KINDS)
             )
+        if kind in kinds[:index]:
+            raise ScenarioError(f"--controllers: {kind!r} is listed twice")
+    return kinds
+
+
+def _cmd_compare(args: argparse.Namespace, progress) -> int:
+    from admittance.diagrams.app.compare import (
+        compare_controllers,
+        format_table,
+        write_comparison,
+    )
+    from admittance.diagrams.app.formatting import number
+    from admittance.diagrams.app.result_folder import check_output_dir
+    from admittance.diagrams.force_controllers import baseline_gains
+    from admittance.diagrams.scenario import load_scenario
+
+    kinds = _controller_kinds(args.controllers)
     scenario = load_scenario(args.scenario, args.overrides)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_compare"
     check_output_dir(out, overwrite=args.force)
     scenario, runs = compare_controllers(
-        args.scenario, args.overrides, kinds or CONTROLLER_KINDS, workers=args.workers
+        args.scenario, args.overrides, kinds, workers=args.workers, progress=progress
     )
-    gains = ", ".join(f"{k} {v:.3g}" for k, v in baseline_gains(scenario).items())
-    print(f"{scenario.name}: Fr = {scenario.force_reference:g} N; baseline gains ({gains})")
+    gains = ", ".join(f"{k} {number(v)}" for k, v in baseline_gains(scenario).items())
+    print(
+        f"{scenario.name}: Fr = {number(scenario.force_reference, ' N')}; baseline gains ({gains})"
+    )
     print(format_table(runs), end="")
-    write_comparison(scenario, runs, out, overwrite=args.force)
-    print(f"wrote {out}/: table.txt, table.csv, metrics.json, force.png")
+    progress(f"writing {out}/")
+    folder = write_comparison(scenario, runs, out, overwrite=args.force)
+    print(folder.describe(out))
     return 0
 
 
-def _cmd_stability(args: argparse.Namespace) -> int:
+def _cmd_stability(args: argparse.Namespace, progress) -> int:
+    from admittance.diagrams.app.result_folder import check_output_dir
     from admittance.diagrams.app.stability_report import (
         MapAxes,
         analyse,
         format_report,
         write_report,
     )
+    from admittance.diagrams.closed_loop import CheckScenarioStarts
+    from admittance.diagrams.scenario import load_scenario
 
     scenario = load_scenario(args.scenario, args.overrides)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_stability"
     axes = MapAxes.quick() if args.quick else MapAxes()
     check_output_dir(out, overwrite=args.force)
-    report = analyse(scenario, axes=axes, with_trajectory=not args.no_trajectory)
-    write_report(report, out, overwrite=args.force)
+    CheckScenarioStarts(scenario)
+    report = analyse(scenario, axes=axes, with_trajectory=not args.no_trajectory, progress=progress)
+    progress(f"writing {out}/")
+    folder = write_report(report, out, overwrite=args.force)
     print(format_report(report.summary), end="")
-    print(f"wrote {out}/: report.json, report.txt, eigenvalues, maps and V(t) as PNG")
+    print(folder.describe(out))
     return 0
 
 
-def _cmd_sweep(args: argparse.Namespace) -> int:
-    from admittance.diagrams.app.sweep import SweepWorkerError, define_sweep, run_sweep
+def _cmd_sweep(args: argparse.Namespace, progress) -> int:
+    from admittance.diagrams.app.formatting import seconds
+    from admittance.diagrams.app.sweep import WorkerDiedError, define_sweep, run_sweep
 
     definition = define_sweep(
         args.scenario,
@@ -179,6 +277,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         samples=args.samples,
         seed=args.seed,
     )
+    points = Path(args.out) / "points.jsonl"
     try:
         outcome = run_sweep(
             definition,
@@ -187,24 +286,28 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
             engine=args.engine,
             scheduler=args.scheduler,
             force=args.force,
+            progress=progress,
         )
     except KeyboardInterrupt:
-        print(
-            f"admittance: interrupted; the finished points are kept in {args.out}/points.jsonl: "
-            f"run the same command again to resume",
-            file=sys.stderr,
-        )
-        return 130
-    except SweepWorkerError as error:
-        print(f"admittance: error: {error}", file=sys.stderr)
+        if points.is_file() and points.stat().st_size > 0:
+            kept = f"the finished points are kept in {points}: run the same command again to resume"
+        else:
+            kept = "no point had finished"
+        print(f"admittance: interrupted; {kept}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except WorkerDiedError as error:
+        _error(str(error))
         return EXIT_RUN_FAILED
     print(outcome.summary, end="")
+    names = ", ".join(path.name for path in outcome.files)
     print(
-        f"ran {outcome.ran} points in {outcome.elapsed:.1f} s ({outcome.skipped} skipped); "
-        f"wrote {outcome.out_dir}/: points.jsonl, table.csv, summary.txt, "
-        f"{len(outcome.files) - 3} summary plot(s)"
+        f"ran {outcome.ran} points in {seconds(outcome.elapsed)} ({outcome.skipped} skipped); "
+        f"wrote {outcome.out_dir}/: {names}"
     )
     return 0
+
+
+# --- the parser ---------------------------------------------------------------------------
 
 
 def _version() -> str:
@@ -217,16 +320,33 @@ def _version() -> str:
         return "unknown"
 
 
+def _subcommand(commands, name: str, help: str) -> argparse.ArgumentParser:
+    parser = commands.add_parser(
+        name,
+        help=help,
+        description=help[0].upper() + help[1:] + ".",
+        epilog=EXIT_STATUS,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    _add_common_arguments(parser)
+    return parser
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="admittance",
         description="Optimal admittance control of a 3-DOF planar arm against a compliant "
         "wall (Drake).",
+        epilog=EXIT_STATUS,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"admittance {_version()}")
+    parser.add_argument(
+        "-q", "--quiet", dest="quiet_all", action="store_true", help="no progress lines on stderr"
+    )
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    simulate = commands.add_parser("simulate", help="run one scenario headless, write results")
-    _add_scenario_arguments(simulate)
+
+    simulate = _subcommand(commands, "simulate", "run one scenario headless, write results")
     simulate.add_argument("--out", help="output folder (default: results/<scenario name>)")
     simulate.add_argument("--force", action="store_true", help="replace an existing --out folder")
     simulate.add_argument(
@@ -234,19 +354,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     simulate.set_defaults(handler=_cmd_simulate)
 
-    diagram = commands.add_parser(
-        "diagram", help="draw the closed loop's block diagram (Graphviz: .svg, .png or .dot)"
+    diagram = _subcommand(
+        commands, "diagram", "draw the closed loop's block diagram (Graphviz: .svg, .png or .dot)"
     )
-    _add_scenario_arguments(diagram)
     diagram.add_argument("--out", required=True, help="output file: .svg, .png or .dot")
     diagram.set_defaults(handler=_cmd_diagram)
 
-    stability = commands.add_parser(
+    stability = _subcommand(
+        commands,
         "stability",
-        help="linearize the loop at its contact equilibrium: eigenvalues, Lyapunov "
-        "certificate, eq. 13, critical Gamma and stability maps",
+        "linearize the loop at its contact equilibrium: eigenvalues, Lyapunov certificate, "
+        "eq. 13, critical Gamma and stability maps",
     )
-    _add_scenario_arguments(stability)
     stability.add_argument("--out", help="output folder (default: results/<scenario>_stability)")
     stability.add_argument("--force", action="store_true", help="replace an existing --out folder")
     stability.add_argument("--quick", action="store_true", help="coarse map grids")
@@ -255,12 +374,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     stability.set_defaults(handler=_cmd_stability)
 
-    compare = commands.add_parser(
+    compare = _subcommand(
+        commands,
         "compare",
-        help="run every force controller (the paper's and the baselines) on one scenario: "
-        "a table and overlaid force plots",
+        "run every force controller (the paper's and the baselines) on one scenario: a table "
+        "and overlaid force plots",
     )
-    _add_scenario_arguments(compare)
     compare.add_argument(
         "--controllers", metavar="K,...", help="a comma list of controller.kind values (all)"
     )
@@ -269,13 +388,15 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--force", action="store_true", help="replace an existing --out folder")
     compare.set_defaults(handler=_cmd_compare)
 
-    bench = commands.add_parser(
+    bench = _subcommand(
+        commands,
         "bench",
-        help="time a scenario (median of --repeat runs after a warm-up) against the bare "
-        "plant's floor; where the time goes",
+        "time a scenario (median of --repeat runs after a warm-up) against the bare plant's "
+        "floor; where the time goes",
     )
-    _add_scenario_arguments(bench)
-    bench.add_argument("--repeat", type=int, default=3, help="timed runs (default 3)")
+    bench.add_argument(
+        "--repeat", type=int, default=3, help=f"timed runs, 1 to {MAX_REPEAT} (default 3)"
+    )
     bench.add_argument("--json", metavar="FILE", help="also write the report as JSON")
     bench.add_argument(
         "--before",
@@ -285,12 +406,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     bench.set_defaults(handler=_cmd_bench)
 
-    sweep = commands.add_parser(
+    sweep = _subcommand(
+        commands,
         "sweep",
-        help="run a grid or Monte Carlo over scenario keys in parallel: one table, summary "
-        "plots; an interrupted sweep resumes where it stopped",
+        "run a grid or Monte Carlo over scenario keys in parallel: one table, summary plots; "
+        "an interrupted sweep resumes where it stopped",
     )
-    _add_scenario_arguments(sweep)
     sweep.add_argument(
         "--grid",
         action="append",
@@ -343,25 +464,67 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    import matplotlib
+# --- main ---------------------------------------------------------------------------------
 
-    matplotlib.use("Agg")  # headless: figures go to files
+
+def _interrupted() -> int:
+    """The one line of a Ctrl-C: which result folders were completed before it, if any."""
+    completed = []
+    module = sys.modules.get("admittance.diagrams.app.result_folder")
+    if module is not None:
+        completed = [f"{folder}/" for folder in module.completed_folders]
+    if completed:
+        print(f"admittance: interrupted after writing {', '.join(completed)}", file=sys.stderr)
+    else:
+        print("admittance: interrupted; no result was written", file=sys.stderr)
+    return EXIT_INTERRUPTED
+
+
+def _load_libraries() -> None:
+    """Drake, numpy and matplotlib (headless: figures go to files), Ctrl-C held back."""
+    with sigint_held_back():
+        for name in DRAKE_MODULES:
+            importlib.import_module(name)
+        import matplotlib
+
+        matplotlib.use("Agg")
+        importlib.import_module("matplotlib.pyplot")
+
+
+def _run(args: argparse.Namespace) -> int:
+    _load_libraries()
+    from admittance.diagrams.app.progress import Progress
+    from admittance.diagrams.app.result_folder import (
+        OutputExistsError,
+        OutputPathError,
+        completed_folders,
+    )
+    from admittance.diagrams.scenario import ScenarioError
     from admittance.diagrams.visualization import DiagramPictureError
 
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    completed_folders.clear()
+    progress = Progress(args.command, quiet=args.quiet or args.quiet_all)
     try:
-        return args.handler(args)
-    except (ScenarioError, OutputExistsError, DiagramPictureError) as error:
-        print(f"admittance: error: {error}", file=sys.stderr)
+        return args.handler(args, progress)
+    except (ScenarioError, OutputExistsError, OutputPathError, DiagramPictureError) as error:
+        _error(str(error))
         return EXIT_INPUT_ERROR
+    except OSError as error:  # the system refused a write that was possible at the start
+        where = f"{error.filename}: " if error.filename else ""
+        _error(f"{where}{error.strerror or error}")
+        return EXIT_RUN_FAILED
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Runs the command line; returns the exit status (0, 1, 2 or 130)."""
+    try:
+        args = build_parser().parse_args(argv)
+        return _run(args)
+    except KeyboardInterrupt:
+        return _interrupted()
     except BrokenPipeError:  # the reader went away (e.g. `| head`): not an error of the run
         sys.stdout = open(os.devnull, "w")  # noqa: SIM115 (so the exit flush stays quiet)
         return 0
-    except KeyboardInterrupt:
-        print("admittance: interrupted; no result was written", file=sys.stderr)
-        return 130
 
 
 if __name__ == "__main__":
