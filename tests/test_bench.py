@@ -9,7 +9,8 @@ import json
 
 import pytest
 
-from admittance.diagrams.app.bench import format_benchmark, load_benchmark_report, run_benchmark
+from admittance.diagrams.app.bench import run_benchmark
+from admittance.diagrams.app.bench_report import format_benchmark, load_benchmark_report
 from admittance.diagrams.scenario import load_scenario
 
 

@@ -160,11 +160,8 @@ def _cmd_diagram(args: argparse.Namespace, progress) -> int:
 def _cmd_bench(args: argparse.Namespace, progress) -> int:
     import json
 
-    from admittance.diagrams.app.bench import (
-        format_benchmark,
-        load_benchmark_report,
-        run_benchmark,
-    )
+    from admittance.diagrams.app.bench import run_benchmark
+    from admittance.diagrams.app.bench_report import format_benchmark, load_benchmark_report
     from admittance.diagrams.app.result_folder import atomic_write_text, check_writable
     from admittance.diagrams.closed_loop import CheckScenarioStarts
     from admittance.diagrams.scenario import ScenarioError, load_scenario
