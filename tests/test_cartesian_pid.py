@@ -37,13 +37,25 @@ def eq18(q):
     return np.array([x, y, a3]), np.array([jx, jy, [1.0, 1.0, 1.0]])
 
 
+def eq18_kinematics(q, v):
+    """The PID's ``kinematics`` input [X; J v; J row by row], from eq. 18 by hand."""
+    X, J = eq18(q)
+    return np.concatenate([X, J @ v, J.reshape(-1)])
+
+
 def _pid_context(pid, q, v, commanded, commanded_rate, integral):
     context = pid.CreateDefaultContext()
-    pid.estimated_state_input.FixValue(context, np.concatenate([q, v]))
+    pid.kinematics_input.FixValue(context, eq18_kinematics(q, v))
     pid.commanded_position_input.FixValue(context, commanded)
     pid.commanded_velocity_input.FixValue(context, commanded_rate)
     pid.set_integral(context, integral)
     return context
+
+
+def _sampled_update(pid, context):
+    """The sampled PID's next (integral, held torque): its two discrete state groups."""
+    updated = pid.EvalUniquePeriodicDiscreteUpdate(context)
+    return (updated.get_vector(group).CopyToVector() for group in (0, 1))
 
 
 def test_torque_is_jacobian_transpose_of_pid_wrench(arm_plant):
@@ -136,9 +148,10 @@ def test_sampled_pid_holds_its_torque(arm_plant):
     X, J = eq18(q)
     context = _pid_context(pid, q, np.zeros(3), X + [1e-3, 0, 0], np.zeros(3), np.zeros(3))
     np.testing.assert_allclose(pid.actuation_output.Eval(context), 0.0)  # nothing latched yet
-    updated = pid.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
-    np.testing.assert_allclose(updated[:3], [1e-6, 0, 0], atol=1e-15)  # integral += h ec
-    np.testing.assert_allclose(updated[3:], J.T @ [2.5, 0, 0], atol=1e-9)
+    updated = pid.EvalUniquePeriodicDiscreteUpdate(context)
+    integral, held = (updated.get_vector(group).CopyToVector() for group in (0, 1))
+    np.testing.assert_allclose(integral, [1e-6, 0, 0], atol=1e-15)  # integral += h ec
+    np.testing.assert_allclose(held, J.T @ [2.5, 0, 0], atol=1e-9)
 
 
 def test_autodiff_conversion_gives_the_jacobian_stiffness(arm_plant):
@@ -146,11 +159,12 @@ def test_autodiff_conversion_gives_the_jacobian_stiffness(arm_plant):
     q = np.array([-0.45, 1.66, 0.36])
     X, J = eq18(q)
     context = pid.CreateDefaultContext()
-    pid.estimated_state_input.FixValue(context, [AutoDiffXd(v) for v in np.r_[q, 0, 0, 0]])
+    kinematics = eq18_kinematics(q, np.zeros(3))
+    pid.GetInputPort("kinematics").FixValue(context, [AutoDiffXd(k) for k in kinematics])
     commanded = [AutoDiffXd(X[i], np.eye(3)[i]) for i in range(3)]
-    pid.commanded_position_input.FixValue(context, commanded)
-    pid.commanded_velocity_input.FixValue(context, [AutoDiffXd(0.0, np.zeros(3))] * 3)
-    torque = pid.actuation_output.Eval(context)
+    pid.GetInputPort("commanded_position").FixValue(context, commanded)
+    pid.GetInputPort("commanded_velocity").FixValue(context, [AutoDiffXd(0.0, np.zeros(3))] * 3)
+    torque = pid.GetOutputPort("actuation").Eval(context)
     gradient = np.array([t.derivatives() for t in torque])
     np.testing.assert_allclose(gradient, J.T @ np.diag(KP), atol=1e-9)
 
@@ -230,15 +244,20 @@ def test_autodiff_pid_clips_and_winds_back_like_the_float_one(arm_plant, sign):
     X, _ = eq18(q)
     commanded = X + sign * np.array([0.5, 0.0, 0.0])
     context = _pid_context(pid, q, np.zeros(3), commanded, np.zeros(3), np.zeros(3))
+    # The converted PID is a plain Diagram: its ports by name, its integral the state of
+    # its Integrator (the diagram's only continuous state).
     context_ad = pid_ad.CreateDefaultContext()
-    pid_ad.estimated_state_input.FixValue(context_ad, [AutoDiffXd(v) for v in np.r_[q, 0, 0, 0]])
-    pid_ad.commanded_position_input.FixValue(
+    kinematics = eq18_kinematics(q, np.zeros(3))
+    pid_ad.GetInputPort("kinematics").FixValue(context_ad, [AutoDiffXd(k) for k in kinematics])
+    pid_ad.GetInputPort("commanded_position").FixValue(
         context_ad, [AutoDiffXd(c, np.eye(3)[i]) for i, c in enumerate(commanded)]
     )
-    pid_ad.commanded_velocity_input.FixValue(context_ad, [AutoDiffXd(0.0, np.zeros(3))] * 3)
-    pid_ad.set_integral(context_ad, [AutoDiffXd(0.0, np.zeros(3))] * 3)
+    pid_ad.GetInputPort("commanded_velocity").FixValue(
+        context_ad, [AutoDiffXd(0.0, np.zeros(3))] * 3
+    )
+    context_ad.SetContinuousState([AutoDiffXd(0.0, np.zeros(3))] * 3)
     torque = pid.actuation_output.Eval(context)
-    torque_ad = pid_ad.actuation_output.Eval(context_ad)
+    torque_ad = pid_ad.GetOutputPort("actuation").Eval(context_ad)
     np.testing.assert_allclose([t.value() for t in torque_ad], torque, atol=1e-12)
     clipped = np.abs(torque) == pid.effort_limits
     assert np.any(clipped)
@@ -271,11 +290,11 @@ def test_sampled_pid_has_no_continuous_state_and_reads_its_integral_anew(arm_pla
     X, J = eq18(q)
     context = _pid_context(pid, q, np.zeros(3), X, np.zeros(3), np.zeros(3))
     assert pid.EvalTimeDerivatives(context).size() == 0
-    first = pid.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
-    np.testing.assert_allclose(first[3:], 0.0, atol=1e-12)
+    _, first = _sampled_update(pid, context)
+    np.testing.assert_allclose(first, 0.0, atol=1e-12)
     pid.set_integral(context, [1e-3, 0.0, 0.0])
-    second = pid.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
-    np.testing.assert_allclose(second[3:], J.T @ [KI[0] * 1e-3, 0, 0], atol=1e-12)
+    _, second = _sampled_update(pid, context)
+    np.testing.assert_allclose(second, J.T @ [KI[0] * 1e-3, 0, 0], atol=1e-12)
 
 
 def test_sampled_anti_windup_tracking_time_is_five_periods(arm_plant):
@@ -287,14 +306,14 @@ def test_sampled_anti_windup_tracking_time_is_five_periods(arm_plant):
     X, J = eq18(q)
     error = np.array([0.5, 0.0, 0.0])
     context = _pid_context(pid, q, np.zeros(3), X + error, np.zeros(3), np.zeros(3))
-    updated = pid.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
+    integral, held = _sampled_update(pid, context)
     unclipped = J.T @ (np.array(KP) * error)
     clipped = np.clip(unclipped, -pid.effort_limits, pid.effort_limits)
     assert np.any(clipped != unclipped)
     wrench_excess = np.linalg.solve(J.T, clipped - unclipped)
     rate = error + wrench_excess / (np.array(KI) * 5 * period)
-    np.testing.assert_allclose(updated[:3], period * rate, rtol=1e-9, atol=1e-15)
-    np.testing.assert_allclose(updated[3:], clipped, atol=1e-12)
+    np.testing.assert_allclose(integral, period * rate, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(held, clipped, atol=1e-12)
 
 
 def _arm_with_transmissions(order) -> MultibodyPlant:

@@ -32,6 +32,12 @@ def _context(block, measured, desired, *, integral=0.0, initial_error=None):
     return context
 
 
+def _sampled_update(block, context):
+    """The sampled block's next (integral, held offset): its two discrete state groups."""
+    updated = block.EvalUniquePeriodicDiscreteUpdate(context)
+    return (updated.get_vector(group).CopyToVector() for group in (0, 1))
+
+
 def test_output_is_the_derivative_free_law():
     block = _block()
     # E = 5 - 3 = 2 N, E0 = 5 N, z = 0.4 N s:
@@ -115,9 +121,11 @@ def test_sampled_law_latches_and_integrates():
     )
     # No continuous state: nothing to integrate between samples.
     assert block.EvalTimeDerivatives(context).size() == 0
-    updated = block.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
-    # E = 2 N: z[k+1] = 0.2 + 0.001 * 2; Xr[k] = 0.025 * (0.2 + 0.1 * (2 - 5)) = -0.0025.
-    np.testing.assert_allclose(updated, [0.202, -0.0025], atol=1e-15)
+    integral, held = _sampled_update(block, context)
+    # E = 2 N: z[k+1] = 0.2 + 0.001 * 2; Xr[k] = 0.025 * (0.2 + 0.1 * (2 - 5)) = -0.0025 on
+    # axis x, held for the output port (the other axes hold 0).
+    np.testing.assert_allclose(integral, [0.202], atol=1e-15)
+    np.testing.assert_allclose(held, [-0.0025, 0.0, 0.0], atol=1e-15)
 
 
 def test_sampled_law_latches_its_first_sample_at_t_0():
@@ -139,9 +147,10 @@ def test_sampled_law_on_three_axes_keeps_one_integral_and_one_held_offset_each()
     context = block.CreateDefaultContext()
     block.measured_force_input.FixValue(context, [3.0, 4.0, 6.0])
     block.desired_force_input.FixValue(context, [5.0, 5.0, 5.0])
-    updated = block.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
+    integral, held = _sampled_update(block, context)
     errors = np.array([2.0, 1.0, -1.0])
-    np.testing.assert_allclose(updated, np.r_[0.001 * errors, GAMMA * K * ALPHA * errors])
+    np.testing.assert_allclose(integral, 0.001 * errors)
+    np.testing.assert_allclose(held, GAMMA * K * ALPHA * errors)
 
 
 def test_sampled_anti_windup_time_constant_is_five_periods():
@@ -150,10 +159,11 @@ def test_sampled_anti_windup_time_constant_is_five_periods():
     period = 0.01
     block = _block(period=period, max_push=0.01)
     context = _context(block, measured=1.0, desired=5.0, integral=1.0, initial_error=4.0)
-    updated = block.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
+    integral, held = _sampled_update(block, context)
     unclamped = GAMMA * K * 1.0  # z = 1, E = E0: 0.025 m, past the 0.01 m bound
     rate = 4.0 + (0.01 - unclamped) / (GAMMA * K * 5 * period)
-    np.testing.assert_allclose(updated, [1.0 + period * rate, 0.01], rtol=1e-12)
+    np.testing.assert_allclose(integral, [1.0 + period * rate], rtol=1e-12)
+    np.testing.assert_allclose(held, [0.01, 0.0, 0.0], rtol=1e-12)
 
 
 def test_continuous_law_feeds_through_the_force():

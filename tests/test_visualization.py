@@ -182,11 +182,11 @@ def loop_diagram():
 
 
 # The connections of paper_moving_wall's loop, counted by hand from the paper's Fig. 1 and
-# BuildClosedLoop: plant <-> scene_graph (2 + 1), plant -> wall, wall -> plant, plant -> PID,
-# PID -> plant, wall -> sensor, noise source -> gain -> sensor (2), sensor -> admittance,
-# Fr -> admittance, Xd and Xr -> commanded position (2), commanded position and dXd/dt -> PID
-# (2). The six loggers' connections are not drawn.
-MOVING_WALL_CONNECTIONS = 16
+# BuildClosedLoop: plant <-> scene_graph (2 + 1), plant -> fingertip kinematics, kinematics
+# -> wall, wall -> plant, kinematics -> PID, PID -> plant, wall -> sensor, noise source ->
+# gain -> sensor (2), sensor -> admittance, Fr -> admittance, Xd and Xr -> commanded position
+# (2), commanded position and dXd/dt -> PID (2). The six loggers' connections are not drawn.
+MOVING_WALL_CONNECTIONS = 17
 
 
 def test_diagram_dot_source_names_the_fig1_blocks(loop_diagram, tmp_path):
