@@ -162,7 +162,7 @@ def _AddDesiredTrajectory(builder: DiagramBuilder, trajectory: TrajectoryConfig)
 def _AddKinematics(
     builder: DiagramBuilder, plant: MultibodyPlant, fingertip_frame: str
 ) -> PlanarKinematics:
-    """X, dX/dt and J of the fingertip, computed once per evaluation for the PID and the wall."""
+    """X, dX/dt and J of the fingertip, once per evaluation, for the PID and the wall."""
     system = builder.AddSystem(PlanarKinematics(plant, frame_name=fingertip_frame))
     system.set_name("fingertip_kinematics")
     builder.Connect(plant.get_state_output_port(), system.estimated_state_input)
@@ -210,11 +210,12 @@ def _AddSensor(
 ):
     """The force sensor on the wall's contact force, its faults and its noise source.
 
-    The ideal measurement is the true force: a wire, no system to evaluate (the sensor is
-    then None).
+    The ideal sensor is a wire: its reading is the contact force, with no system to
+    evaluate.
 
     Returns:
-        (the sensor, the port of the force it reports, the random sources added).
+        (the FlexiForce system or None, the port of the force it reports, the random
+        sources added).
     """
     system = None
     if sensor.kind == "ideal":
@@ -588,13 +589,12 @@ def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
 
     if hasattr(loop.admittance, "set_initial_force_error"):
         # The reading before any injected sensor fault: the sensor's, or the true force.
-        reader = loop.sensor if loop.sensor is not None else loop.wall
         reading = (
-            loop.sensor.measured_force_output
-            if loop.sensor is not None
-            else loop.wall.contact_force_output
+            loop.wall.contact_force_output
+            if loop.sensor is None
+            else loop.sensor.measured_force_output
         )
-        measured = reading.Eval(reader.GetMyContextFromRoot(context))
+        measured = reading.Eval(reading.get_system().GetMyContextFromRoot(context))
         admittance_context = loop.admittance.GetMyMutableContextFromRoot(context)
         loop.admittance.set_initial_force_error(
             admittance_context, np.array([scenario.force_reference]) - measured

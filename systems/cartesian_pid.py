@@ -113,8 +113,8 @@ def CartesianPidLaw_(T):
             num_actuators = plant.num_actuated_dofs()
             if num_actuators < size:
                 raise ValueError(
-                    f"the Cartesian PID needs at least {size} actuators for its {size} task "
-                    f"coordinates; the plant has {num_actuators}"
+                    f"the Cartesian PID needs a fully actuated frame: at least {size} actuators "
+                    f"for its {size} task coordinates; the plant has {num_actuators}"
                 )
             self._num_velocities = num_velocities
             # Where each row of J starts in the kinematics vector [X; dX/dt; J].
@@ -138,9 +138,15 @@ def CartesianPidLaw_(T):
             limits = []
             for row, index in enumerate(plant.GetJointActuatorIndices()):
                 actuator = plant.get_joint_actuator(index)
-                selection[row, actuator.joint().velocity_start()] = 1.0
+                column = actuator.joint().velocity_start()
+                if selection[:, column].any():
+                    raise ValueError(
+                        "the Cartesian PID needs a fully actuated arm, one actuator per joint: "
+                        f"joint '{actuator.joint().name()}' has two"
+                    )
+                selection[row, column] = 1.0
                 limit = actuator.effort_limit()
-                limits.append(limit if np.isfinite(limit) and limit > 0 else np.inf)
+                limits.append(limit)  # Drake keeps it > 0 (inf where the URDF gives none)
             self._actuation_from_generalized = selection
             self._actuators_in_joint_order = bool(np.array_equal(selection, np.eye(num_actuators)))
             self._effort_limits = np.array(limits)
@@ -311,6 +317,23 @@ def CartesianPidLaw_(T):
 CartesianPidLaw = CartesianPidLaw_[None]
 
 
+def _check_frame_actuated(plant, frame_name: str) -> None:
+    """Raises ValueError unless every joint that moves `frame_name` has an actuator."""
+    body_index = plant.GetFrameByName(frame_name).body().index()
+    actuated = {
+        plant.get_joint_actuator(index).joint().index() for index in plant.GetJointActuatorIndices()
+    }
+    for joint_index in plant.GetJointIndices():
+        joint = plant.get_joint(joint_index)
+        if joint.num_velocities() == 0 or joint_index in actuated:
+            continue
+        if body_index in plant.GetBodiesKinematicallyAffectedBy([joint_index]):
+            raise ValueError(
+                f"the Cartesian PID needs a fully actuated arm: joint '{joint.name()}' moves "
+                f"'{frame_name}' but has no actuator"
+            )
+
+
 class CartesianPid(Diagram):
     """Cartesian PID with joint torques through the Jacobian transpose (paper eq. 14-16).
 
@@ -377,18 +400,14 @@ class CartesianPid(Diagram):
         self._kinematics = PlanarFrameKinematics(
             plant, frame_name, coordinates=coordinates, expressed_in=expressed_in
         )
-        self._actuation_from_generalized = np.zeros(
-            (plant.num_actuated_dofs(), plant.num_velocities())
-        )
-        for row, index in enumerate(plant.GetJointActuatorIndices()):
-            joint = plant.get_joint_actuator(index).joint()
-            self._actuation_from_generalized[row, joint.velocity_start()] = 1.0
+        _check_frame_actuated(plant, frame_name)
         builder = DiagramBuilder()
         law = builder.AddNamedSystem(
             "law",
             CartesianPidLaw(plant, kp=kp, kd=kd, ki=ki, period=period, coordinates=coordinates),
         )
         self._law = law
+        self._actuation_from_generalized = law._actuation_from_generalized
         self._integrator = None
         for port in (
             law.commanded_position_input,

@@ -84,34 +84,29 @@ def test_generated_kinematics_are_the_plants_and_eq18(arm_plant):
 
 # A different arm: four joints (a prismatic one among them), tilted and offset joint
 # frames, and a frame that is not a body origin. Nothing in the generator knows this model.
-OTHER_URDF = """<?xml version="1.0"?>
-<robot name="other_arm">
-  <link name="base"/>
-  <link name="a"><inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01"
-    ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <link name="b"><inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01"
-    ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <link name="c"><inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01"
-    ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <link name="d"><inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01"
-    ixy="0" ixz="0" iyz="0"/></inertial></link>
-  <link name="tip"/>
-  <joint name="j1" type="revolute"><parent link="base"/><child link="a"/>
-    <origin xyz="0.1 0.05 0" rpy="0 0 0.3"/><axis xyz="0 0 1"/>
-    <limit lower="-3" upper="3" effort="10" velocity="1"/></joint>
-  <joint name="j2" type="prismatic"><parent link="a"/><child link="b"/>
-    <origin xyz="0.3 0 0" rpy="0 0 -0.2"/><axis xyz="1 0 0"/>
-    <limit lower="-1" upper="1" effort="10" velocity="1"/></joint>
-  <joint name="j3" type="revolute"><parent link="b"/><child link="c"/>
-    <origin xyz="0 0.25 0" rpy="0 0 0"/><axis xyz="0 0 1"/>
-    <limit lower="-3" upper="3" effort="10" velocity="1"/></joint>
-  <joint name="j4" type="revolute"><parent link="c"/><child link="d"/>
-    <origin xyz="0.15 0 0" rpy="0 0 0.5"/><axis xyz="0 0 1"/>
-    <limit lower="-3" upper="3" effort="10" velocity="1"/></joint>
-  <joint name="tool" type="fixed"><parent link="d"/><child link="tip"/>
+_LINK = """  <link name="{}"><inertial><mass value="1"/>
+    <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+"""
+_JOINT = """  <joint name="{}" type="{}"><parent link="{}"/><child link="{}"/>
+    <origin xyz="{}" rpy="0 0 {}"/><axis xyz="{}"/>
+    <limit lower="-{}" upper="{}" effort="10" velocity="1"/></joint>
+"""
+_JOINTS = [  # name, type, parent, child, origin xyz, origin yaw, axis, limit
+    ("j1", "revolute", "base", "a", "0.1 0.05 0", 0.3, "0 0 1", 3),
+    ("j2", "prismatic", "a", "b", "0.3 0 0", -0.2, "1 0 0", 1),
+    ("j3", "revolute", "b", "c", "0 0.25 0", 0.0, "0 0 1", 3),
+    ("j4", "revolute", "c", "d", "0.15 0 0", 0.5, "0 0 1", 3),
+]
+OTHER_URDF = (
+    '<?xml version="1.0"?>\n<robot name="other_arm">\n  <link name="base"/>\n'
+    + "".join(_LINK.format(name) for name in "abcd")
+    + '  <link name="tip"/>\n'
+    + "".join(_JOINT.format(*joint, joint[-1]) for joint in _JOINTS)
+    + """  <joint name="tool" type="fixed"><parent link="d"/><child link="tip"/>
     <origin xyz="0.07 -0.02 0" rpy="0 0 0.1"/></joint>
 </robot>
 """
+)
 
 
 def test_another_urdf_works_unchanged():
