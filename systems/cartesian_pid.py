@@ -11,7 +11,7 @@ and the held torque as the law's discrete states, and outputs the held torque di
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from pydrake.autodiffutils import AutoDiffXd
@@ -117,8 +117,8 @@ def CartesianPidLaw_(T):
                     f"for its {size} task coordinates; the plant has {num_actuators}"
                 )
             self._num_velocities = num_velocities
-            # Where each row of J starts in the kinematics vector [X; dX/dt; J].
-            self._jacobian_rows = [2 * size + axis * num_velocities for axis in range(size)]
+            # tau = J^T F_PID as straight-line code on the kinematics vector [X; dX/dt; J].
+            self._transpose_product = _transpose_product(size, num_velocities)
             self._kp = _gain_vector("kp", kp, size, allow_zero=False)
             self._kd = _gain_vector("kd", kd, size, allow_zero=True)
             self._ki = _gain_vector("ki", ki, size, allow_zero=True)
@@ -241,17 +241,7 @@ def CartesianPidLaw_(T):
                 + ki[i] * integral[i]
                 for i in range(size)
             ]
-            # tau = J^T F_PID (eq. 16), with J's rows after X and dX/dt in `kinematics`,
-            # summed axis after axis (for X = (x, y, theta) exactly J_x F_x + J_y F_y +
-            # J_theta F_theta, as written out before the task space was a parameter).
-            num_velocities = self._num_velocities
-            rows = self._jacobian_rows
-            torque = []
-            for j in range(num_velocities):
-                total = kinematics[rows[0] + j] * wrench[0]
-                for axis in range(1, size):
-                    total = total + kinematics[rows[axis] + j] * wrench[axis]
-                torque.append(total)
+            torque = self._transpose_product(kinematics, wrench)  # tau = J^T F_PID (eq. 16)
             if not self._actuators_in_joint_order:
                 torque = (self._actuation_from_generalized @ np.array(torque)).tolist()
             values = torque if T is float else [t.value() for t in torque]
@@ -262,7 +252,7 @@ def CartesianPidLaw_(T):
                 return torque, error, error
             torque = np.array(torque)
             clipped = self._clip(torque)
-            jacobian = np.array(kinematics[2 * size :]).reshape(size, num_velocities)
+            jacobian = np.array(kinematics[2 * size :]).reshape(size, self._num_velocities)
             rate = self._integral_rate(error, clipped - torque, jacobian)
             return clipped.tolist(), rate.tolist(), error
 
@@ -315,6 +305,23 @@ def CartesianPidLaw_(T):
 
 
 CartesianPidLaw = CartesianPidLaw_[None]
+
+
+def _transpose_product(size: int, num_velocities: int) -> Callable[[list, list], list]:
+    """``function(kinematics, wrench) -> tau``, tau_j = sum_i J_ij F_i, as one line of code.
+
+    J (size x num_velocities) is read row by row after X and dX/dt in the kinematics vector
+    [X; dX/dt; J]. The sum runs axis after axis (J_xj F_x + J_yj F_y + J_thetaj F_theta for
+    the arm), on Python floats or AutoDiffXd alike. Generated once for the task's size: a
+    written-out sum of constant indices costs a third of a loop over the axes.
+    """
+    first = 2 * size  # where J starts
+    sums = (
+        " + ".join(f"k[{first + axis * num_velocities + j}] * w[{axis}]" for axis in range(size))
+        for j in range(num_velocities)
+    )
+    source = f"lambda k, w: [{', '.join(sums)}]"
+    return eval(compile(source, f"<J^T F, {size} x {num_velocities}>", "eval"), {})
 
 
 def _check_frame_actuated(plant, frame_name: str) -> None:
