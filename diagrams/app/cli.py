@@ -295,6 +295,7 @@ def _cmd_grasp_compare(args: argparse.Namespace, progress) -> int:
         stiffness_errors=_number_list("--stiffness-errors", args.stiffness_errors),
         controllers=controllers,
         workers=args.workers,
+        progress=progress,
     )
     table = format_grasp_table(rows)
     print(table, end="")
@@ -593,6 +594,7 @@ def _run(args: argparse.Namespace) -> int:
         OutputPathError,
         completed_folders,
     )
+    from admittance.diagrams.app.sweep.runner import WorkerDiedError
     from admittance.diagrams.scenario import ScenarioError
     from admittance.diagrams.visualization import DiagramPictureError
 
@@ -603,6 +605,9 @@ def _run(args: argparse.Namespace) -> int:
     except (ScenarioError, OutputExistsError, OutputPathError, DiagramPictureError) as error:
         _error(str(error))
         return EXIT_INPUT_ERROR
+    except WorkerDiedError as error:  # compare, grasp-compare (sweep says what it kept)
+        _error(str(error))
+        return EXIT_RUN_FAILED
     except OSError as error:  # the system refused a write that was possible at the start
         where = f"{error.filename}: " if error.filename else ""
         _error(f"{where}{error.strerror or error}")
