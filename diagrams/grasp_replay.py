@@ -12,14 +12,7 @@ import os
 from pathlib import Path
 
 import numpy as np
-from pydrake.geometry import (
-    Box,
-    MeshcatCone,
-    MeshcatVisualizer,
-    MeshcatVisualizerParams,
-    Rgba,
-    Role,
-)
+from pydrake.geometry import Rgba
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import DiagramBuilder
 
@@ -27,12 +20,12 @@ from admittance.diagrams.grasp import AddHand
 from admittance.diagrams.grasp_scenario import FINGERS
 from admittance.diagrams.grasp_simulation import GraspResult
 from admittance.diagrams.visualization import (
-    REPLAY_FRAMES_PER_SECOND,
+    _arrow_scale,
+    _ForceArrow,
     _frame_times,
     _interpolate,
-    _quiet_meshcat,
+    _Replay,
     _view_bounds,
-    _write_atomically,
 )
 
 __all__ = ["write_grasp_meshcat_replay"]
@@ -48,13 +41,13 @@ _FORCE_COLOR = Rgba(0.85, 0.10, 0.10, 1.0)
 _SHAFT_WIDTH = 0.004
 _HEAD_LENGTH = 0.01
 _HEAD_RADIUS = 0.006
-_TINY_SCALE = 1e-4
 
 
 def _along(normal: np.ndarray) -> RotationMatrix:
-    """A rotation that turns +x into `normal` (a unit vector in the y-z plane)."""
-    angle = math.atan2(normal[2], normal[1])
-    return RotationMatrix.MakeXRotation(angle) @ RotationMatrix.MakeZRotation(math.pi / 2)
+    """A rotation that turns +x into `normal` (a unit vector in the y-z plane), +y into -x
+    and +z into x cross `normal`; its first column is `normal` exactly."""
+    _, ny, nz = normal
+    return RotationMatrix(np.array([[0.0, -1.0, 0.0], [ny, 0.0, -nz], [nz, 0.0, ny]]))
 
 
 def write_grasp_meshcat_replay(result: GraspResult, path: str | os.PathLike) -> Path:
@@ -81,90 +74,43 @@ def write_grasp_meshcat_replay(result: GraspResult, path: str | os.PathLike) -> 
         0.0,
     )
     tips = [_interpolate(result.time, result.tip[:, i, :], times) for i in range(3)]
-    peak = float(forces.max()) if forces.size else 0.0
-    meters_per_newton = ARROW_METERS_PER_NEWTON
-    if peak * meters_per_newton > ARROW_MAX_LENGTH:
-        meters_per_newton = ARROW_MAX_LENGTH / peak
+    meters_per_newton = _arrow_scale(forces, ARROW_METERS_PER_NEWTON, ARROW_MAX_LENGTH)
 
     builder = DiagramBuilder()
     plant, scene_graph, geometry = AddHand(builder, result.scenario)
-    meshcat = _quiet_meshcat()
-    visualizer = MeshcatVisualizer.AddToBuilder(
-        builder,
-        scene_graph,
-        meshcat,
-        MeshcatVisualizerParams(
-            role=Role.kIllustration, publish_period=1.0 / REPLAY_FRAMES_PER_SECOND
-        ),
-    )
-    diagram = builder.Build()
-    context = diagram.CreateDefaultContext()
-    plant_context = plant.GetMyMutableContextFromRoot(context)
+    replay = _Replay(builder, plant, scene_graph)
 
-    head_rotation = RotationMatrix.MakeYRotation(-math.pi / 2)  # the cone's apex along +x
-    normals, rotations = [], []
+    normals, rotations, arrows = [], [], []
     for index, finger in enumerate(FINGERS):
-        X_WC = geometry.face_frames[index]
-        normals.append(X_WC.rotation().col(0))
+        normals.append(geometry.face_frames[index].rotation().col(0))
         rotations.append(_along(normals[-1]))
-        meshcat.SetObject(
-            f"{FORCE_PATH}/{finger}/shaft", Box(1.0, _SHAFT_WIDTH, _SHAFT_WIDTH), _FORCE_COLOR
+        arrows.append(
+            _ForceArrow(
+                f"{FORCE_PATH}/{finger}", _SHAFT_WIDTH, _HEAD_LENGTH, _HEAD_RADIUS, _FORCE_COLOR
+            )
         )
-        meshcat.SetObject(
-            f"{FORCE_PATH}/{finger}/head",
-            MeshcatCone(_HEAD_LENGTH, _HEAD_RADIUS, _HEAD_RADIUS),
-            _FORCE_COLOR,
-        )
+        arrows[-1].add_to(replay.meshcat)
 
-    animation = visualizer.StartRecording(set_transforms_while_recording=False)
-    for frame_index, t in enumerate(times):
-        context.SetTime(float(t))
-        plant.SetPositions(plant_context, joint_positions[frame_index])
-        diagram.ForcedPublish(context)
-        frame = animation.frame(float(t))
-        for index, finger in enumerate(FINGERS):
-            X_WC = geometry.face_frames[index]
+    def draw_overlays(animation, frame: int, frame_index: int) -> None:
+        for index, arrow in enumerate(arrows):
             tip = tips[index][frame_index]
             # The contact point: the tip centre moved by the radius along the normal.
-            centre = X_WC.multiply(np.array([tip[0], tip[1], 0.0]))
+            centre = geometry.face_frames[index].multiply(np.array([tip[0], tip[1], 0.0]))
             start = centre + geometry.tip_radius * normals[index]
             start[0] = OVERLAY_X
             length = forces[frame_index, index] * meters_per_newton
-            shaft = max(length - _HEAD_LENGTH, _TINY_SCALE)
-            head_scale = max(min(1.0, length / _HEAD_LENGTH), _TINY_SCALE)
-            base = f"{FORCE_PATH}/{finger}"
-            animation.SetProperty(frame, base, "visible", bool(length > _TINY_SCALE))
-            animation.SetTransform(
-                frame,
-                f"{base}/shaft",
-                RigidTransform(rotations[index], start + 0.5 * shaft * normals[index]),
-            )
-            animation.SetProperty(frame, f"{base}/shaft", "scale", [shaft, 1.0, 1.0])
-            animation.SetTransform(
-                frame,
-                f"{base}/head",
-                RigidTransform(rotations[index] @ head_rotation, start + length * normals[index]),
-            )
-            animation.SetProperty(frame, f"{base}/head", "scale", [head_scale] * 3)
-    visualizer.StopRecording()
-    visualizer.PublishRecording()
+            arrow.animate(animation, frame, start, length, rotations[index])
 
+    replay.record(times, joint_positions, draw_overlays)
     # Fit the view around the fingers' bodies and the brick over the run.
-    points = []
     bodies = [
         plant.GetBodyByName(f"{finger}_{link}")
         for finger in FINGERS
         for link in ("base", "link1", "link2", "tip_link")
     ] + [plant.GetBodyByName("brick_link")]
-    for q in joint_positions[:: max(1, len(joint_positions) // 50)]:
-        plant.SetPositions(plant_context, q)
-        points.append(
-            [plant.EvalBodyPoseInWorld(plant_context, body).translation()[1:] for body in bodies]
-        )
-    ymin, ymax, zmin, zmax = _view_bounds(np.vstack(points))
+    sampled = joint_positions[:: max(1, len(joint_positions) // 50)]
+    bounds = _view_bounds(replay.body_positions(sampled, bodies)[:, 1:])
     # Camera in front of the plane (x = +1) looking along -x (its +y), world z up (its +z):
     # its x axis is then world +y, drawn to the right.
     X_WCamera = RigidTransform(RotationMatrix.MakeZRotation(math.pi / 2), [1.0, 0.0, 0.0])
-    meshcat.Set2dRenderMode(X_WC=X_WCamera, xmin=ymin, xmax=ymax, ymin=zmin, ymax=zmax)
-    _write_atomically(path, meshcat.StaticHtml().encode("utf-8"))
-    return path
+    return replay.write(path, X_WCamera, bounds)

@@ -38,8 +38,8 @@ from admittance.diagrams.simulation import (
     CONTACT_FRACTION,
     SETTLE_BAND,
     STEADY_WINDOW,
-    SimulationDivergedError,
     _divergence_monitor,
+    _finished,
 )
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
@@ -264,13 +264,7 @@ def run_grasp(
         if scenario.time_step > 0
         else int(simulator.get_integrator().get_num_steps_taken())
     )
-    result = _collect(loop, context, wall_time, steps)
-    if divergence:
-        result.metrics["failed"] = True
-        result.metrics["failure"] = divergence[-1]
-        raise SimulationDivergedError(f"simulation diverged: {divergence[-1]}", result)
-    result.metrics["failed"] = False
-    return result
+    return _finished(_collect(loop, context, wall_time, steps), divergence)
 
 
 def _collect(loop: GraspLoop, context, wall_time: float, steps: int) -> GraspResult:

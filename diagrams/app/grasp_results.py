@@ -9,11 +9,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from admittance.diagrams.app.result_folder import ResultFolder, result_folder
-from admittance.diagrams.app.simulate import _write_timeseries
+from admittance.diagrams.app.result_folder import ResultFolder
+from admittance.diagrams.app.simulate import write_results
 from admittance.diagrams.grasp_plots import plot_grasp
 from admittance.diagrams.grasp_simulation import GraspResult, grasp_verdict_line
-from admittance.diagrams.scenario import scenario_to_yaml
 
 __all__ = ["GRASP_FIGURE", "grasp_summary", "write_grasp_results"]
 
@@ -24,12 +23,7 @@ def write_grasp_results(
     result: GraspResult, out_dir: str | Path, overwrite: bool = True
 ) -> ResultFolder:
     """Writes a complete grasp result folder atomically; returns what it wrote."""
-    with result_folder(out_dir, overwrite=overwrite) as folder:
-        folder.write_with("timeseries.csv", lambda path: _write_timeseries(result, path))
-        folder.write_json("metrics.json", result.metrics)
-        folder.write_text("scenario.yaml", scenario_to_yaml(result.scenario))
-        folder.write_figure(GRASP_FIGURE, plot_grasp(result)[0].figure)
-    return folder
+    return write_results(result, out_dir, overwrite, figures={GRASP_FIGURE: plot_grasp})
 
 
 def grasp_summary(result: GraspResult) -> str:
