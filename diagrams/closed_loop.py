@@ -1,14 +1,16 @@
 """The paper's Fig. 1 as a Drake Diagram: arm, wall, sensor, optimal admittance and PID.
 
 Xd --(+)--> Xc --> CartesianPid --tau--> plant --state--> PlanarKinematics
-      ^ Xr              ^ X, dX/dt, J      ^ spatial force      | X, dX/dt, J
+      ^ Xr              ^ X, dX/dt, J      ^ -F J_x^T           | X, dX/dt, J
       |                 +------------------|--------------------+
       |                                CompliantWall <----------+
       +------- OptimalAdmittance <-- Fm -- sensor <-- F --+
                       ^ Fr
 
 The fingertip's kinematics are computed once per evaluation and read by the PID and the
-wall; with the ideal sensor (the paper's simulation) Fm is the wall's F itself.
+wall; the wall's force reaches the plant as generalized forces (the force at the fingertip
+through the Jacobian's x row); with the ideal sensor (the paper's simulation) Fm is the
+wall's F itself.
 """
 
 from __future__ import annotations
@@ -195,7 +197,7 @@ def _AddWall(
     system.set_name("compliant_wall")
     builder.Connect(kinematics.kinematics_output, system.kinematics_input)
     builder.Connect(
-        system.applied_spatial_force_output, plant.get_applied_spatial_force_input_port()
+        system.generalized_force_output, plant.get_applied_generalized_force_input_port()
     )
     return system
 

@@ -67,6 +67,8 @@ def test_sign_moves_reference_toward_the_wall_while_force_is_low(measured, direc
 
 def test_gradient_flow_rate_matches_eq_10_prime():
     """dXr/dt = Gamma K (E + alpha dE/dt) for a force that ramps (checked by AutoDiff)."""
+    # The converted block is a plain Diagram (its ports by name, z the state of its
+    # Integrator); E0, a constant, is left at its default: it does not enter dXr/dt.
     block = _block().ToAutoDiffXd()
     context = block.CreateDefaultContext()
     # Time-varying inputs as AutoDiff values with d/dt: F = 3 + 4 t, z = 0.4, dz/dt = E.
@@ -74,11 +76,10 @@ def test_gradient_flow_rate_matches_eq_10_prime():
     rate = 4.0  # dF/dt, so dE/dt = -4
     error = 5.0 - measured
     z = AutoDiffXd(0.4, [error])
-    block.measured_force_input.FixValue(context, [AutoDiffXd(measured, [rate])])
-    block.desired_force_input.FixValue(context, [AutoDiffXd(5.0, [0.0])])
+    block.GetInputPort("measured_force").FixValue(context, [AutoDiffXd(measured, [rate])])
+    block.GetInputPort("desired_force").FixValue(context, [AutoDiffXd(5.0, [0.0])])
     context.SetContinuousState([z])
-    block.set_initial_force_error(context, [AutoDiffXd(5.0, [0.0])])
-    offset = block.reference_offset_output.Eval(context)[0]
+    offset = block.GetOutputPort("reference_offset").Eval(context)[0]
     expected_rate = GAMMA * K * (error + ALPHA * (-rate))
     assert offset.derivatives()[0] == pytest.approx(expected_rate, rel=1e-12)
 
@@ -176,9 +177,9 @@ def test_continuous_law_feeds_through_the_force():
 def test_autodiff_gain_of_output_to_force():
     block = _block().ToAutoDiffXd()
     context = block.CreateDefaultContext()
-    block.measured_force_input.FixValue(context, [AutoDiffXd(3.0, [1.0])])
-    block.desired_force_input.FixValue(context, [AutoDiffXd(5.0, [0.0])])
-    offset = block.reference_offset_output.Eval(context)[0]
+    block.GetInputPort("measured_force").FixValue(context, [AutoDiffXd(3.0, [1.0])])
+    block.GetInputPort("desired_force").FixValue(context, [AutoDiffXd(5.0, [0.0])])
+    offset = block.GetOutputPort("reference_offset").Eval(context)[0]
     assert offset.derivatives()[0] == pytest.approx(-GAMMA * K * ALPHA)
 
 
@@ -261,15 +262,15 @@ def test_small_positive_force_bound_arguments_are_accepted():
 
 def test_autodiff_law_takes_a_broken_reading_as_zero_error():
     """NaN from the sensor in the AutoDiffXd law (what Linearize uses): E = 0, with no
-    derivative, so the integral freezes and Xr holds, as in the float law."""
+    derivative, so the integral freezes and Xr holds, as in the float law (E0 = 0, the
+    default)."""
     block = _block().ToAutoDiffXd()
     context = block.CreateDefaultContext()
-    block.measured_force_input.FixValue(context, [AutoDiffXd(math.nan, [1.0])])
-    block.desired_force_input.FixValue(context, [AutoDiffXd(5.0, [0.0])])
-    block.set_initial_force_error(context, [AutoDiffXd(0.0, [0.0])])
+    block.GetInputPort("measured_force").FixValue(context, [AutoDiffXd(math.nan, [1.0])])
+    block.GetInputPort("desired_force").FixValue(context, [AutoDiffXd(5.0, [0.0])])
     context.SetContinuousState([AutoDiffXd(0.4, [0.0])])
     (rate,) = block.EvalTimeDerivatives(context).CopyToVector()
     assert rate.value() == 0.0
     np.testing.assert_array_equal(rate.derivatives(), 0.0)
-    offset = block.reference_offset_output.Eval(context)[0]
+    offset = block.GetOutputPort("reference_offset").Eval(context)[0]
     assert offset.value() == pytest.approx(GAMMA * K * 0.4, rel=1e-12)
