@@ -77,9 +77,9 @@ def OptimalAdmittanceLaw_(T):
         and Xr = 0 on the other axes, with the safety terms of ``OptimalAdmittance``.
 
         The law reads its inputs as one vector ``law_input``, gathered by a Multiplexer in
-        ``OptimalAdmittance`` (one port read instead of four): per force axis the desired
-        force Fr, then the measured force Fm, then the initial force error E0, and, for the
-        continuous law, the integral z.
+        ``OptimalAdmittance`` (one port read instead of four, each about 0.5 us): the desired
+        forces Fr (one per force axis), the measured forces Fm, the initial force errors E0
+        and, for the continuous law, the integrals z.
 
         Continuous (``period`` 0): memoryless; the one output ``reference_offset_and_rate``
         = [Xr (num_axes); dz/dt (one per force axis)] is computed in one calc. Sampled
@@ -222,8 +222,8 @@ def OptimalAdmittanceLaw_(T):
         def _law(self, values, integral):
             """(Xr on every axis of X, dz/dt per force axis) as lists of Python scalars.
 
-            `values` holds [Fr; Fm; E0] per force axis (and z after them, unused here),
-            `integral` z; floats, or AutoDiffXd after conversion.
+            `values` holds [Fr; Fm; E0] (each one entry per force axis; z may follow, unused
+            here), `integral` z; floats, or AutoDiffXd after conversion.
             """
             size = self._size
             gains, alphas = self._integral_gain_list, self._alpha_list
