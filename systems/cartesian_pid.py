@@ -19,9 +19,10 @@ from pydrake.autodiffutils import AutoDiffXd
 from pydrake.math import max as scalar_max
 from pydrake.math import min as scalar_min
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem_
-from pydrake.systems.primitives import Demultiplexer, Integrator, Multiplexer
+from pydrake.systems.primitives import Multiplexer
 from pydrake.systems.scalar_conversion import TemplateSystem
 
+from admittance.systems.law_integral import AddLawIntegral
 from admittance.systems.planar_kinematics import (
     PLANAR_COORDINATES,
     PlanarFrameKinematics,
@@ -440,15 +441,12 @@ class CartesianPid(Diagram):
         for index, name in enumerate(("commanded_position", "commanded_velocity", "kinematics")):
             builder.ExportInput(inputs.get_input_port(index), name)
         if law.period == 0.0:
-            num_actuators = plant.num_actuated_dofs()
-            size = self._kinematics.num_coordinates
-            split = builder.AddNamedSystem("split", Demultiplexer([num_actuators, size]))
-            integrator = builder.AddNamedSystem("integral", Integrator(size))
-            builder.Connect(law.actuation_and_integral_rate_output, split.get_input_port())
-            builder.Connect(split.get_output_port(1), integrator.get_input_port())
-            builder.Connect(integrator.get_output_port(), inputs.get_input_port(3))
-            builder.ExportOutput(split.get_output_port(0), "actuation")
-            self._integrator = integrator
+            self._integrator = AddLawIntegral(
+                builder,
+                law.actuation_and_integral_rate_output,
+                inputs.get_input_port(3),
+                "actuation",
+            )
         else:
             builder.ExportOutput(law.actuation_output, "actuation")
         builder.BuildInto(self)

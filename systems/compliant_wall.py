@@ -41,17 +41,17 @@ def CompliantWallLaw_(T):
             self,
             plant,
             *,
-            frame_name: str = "fingertip",
+            frame_name: str,
             position: float,
             stiffness: float,
-            stiffness_steps: Sequence[tuple[float, float]] = (),
-            velocity: float = 0.0,
-            motion_start: float = 0.0,
-            motion_end: float = math.inf,
-            position_offsets: Sequence[tuple[float, float, float]] = (),
+            stiffness_steps: Sequence[tuple[float, float]],
+            velocity: float,
+            motion_start: float,
+            motion_end: float,
+            position_offsets: Sequence[tuple[float, float, float]],
             converter=None,
         ) -> None:
-            """The arguments of ``CompliantWall``."""
+            """The arguments of ``CompliantWall``, every one given."""
             LeafSystem_[T].__init__(self, converter=converter)
             if not plant.HasFrameNamed(frame_name):
                 raise ValueError(f"the plant has no frame named '{frame_name}'")
@@ -143,11 +143,9 @@ def CompliantWallLaw_(T):
 
         # --- the law ----------------------------------------------------------------------
         def _CalcLaw(self, context, output) -> None:
-            kinematics = self.kinematics_input.Eval(context)
+            kinematics = self.kinematics_input.Eval(context).tolist()  # floats or AutoDiffXd
             time = context.get_time()
-            if T is float:
-                kinematics = kinematics.tolist()
-            else:
+            if T is not float:
                 time = time.value() if hasattr(time, "value") else float(time)
             penetration = kinematics[0] - self.position_at(time)  # x of X = (x, y, theta)
             if T is float:

@@ -49,15 +49,11 @@ from collections.abc import Sequence
 import numpy as np
 from pydrake.autodiffutils import AutoDiffXd
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem_
-from pydrake.systems.primitives import (
-    ConstantVectorSource,
-    Demultiplexer,
-    Integrator,
-    Multiplexer,
-)
+from pydrake.systems.primitives import ConstantVectorSource, Multiplexer
 from pydrake.systems.scalar_conversion import TemplateSystem
 
 from admittance.systems.force_axes import check_axes, per_axis
+from admittance.systems.law_integral import AddLawIntegral
 
 __all__ = ["OptimalAdmittance", "OptimalAdmittanceLaw", "OptimalAdmittanceLaw_"]
 
@@ -102,16 +98,16 @@ def OptimalAdmittanceLaw_(T):
             gamma: float | Sequence[float],
             alpha: float | Sequence[float],
             stiffness: float | Sequence[float],
-            force_axes: Sequence[int] = (0,),
-            num_axes: int = 3,
-            period: float = 0.0,
-            max_push: float | Sequence[float] = math.inf,
-            max_retract: float | Sequence[float] = math.inf,
-            max_force: float | Sequence[float] = math.inf,
-            force_bound_gain: float = 4.0,
+            force_axes: Sequence[int],
+            num_axes: int,
+            period: float,
+            max_push: float | Sequence[float],
+            max_retract: float | Sequence[float],
+            max_force: float | Sequence[float],
+            force_bound_gain: float,
             converter=None,
         ) -> None:
-            """The arguments of ``OptimalAdmittance``."""
+            """The arguments of ``OptimalAdmittance``, every one given."""
             LeafSystem_[T].__init__(self, converter=converter)
             axes = check_axes(force_axes, num_axes)
             if not (np.isfinite(period) and period >= 0):
@@ -264,14 +260,12 @@ def OptimalAdmittanceLaw_(T):
             return offsets, rates
 
         def _CalcLaw(self, context, output) -> None:
-            values = self.law_input.Eval(context)
-            values = values.tolist() if T is float else list(values)
+            values = self.law_input.Eval(context).tolist()  # floats, or AutoDiffXd objects
             offsets, rates = self._law(values, values[3 * self._size :])
             output.SetFromVector(offsets + rates)
 
         def _DiscreteUpdate(self, context, discrete_state) -> None:
-            values = self.law_input.Eval(context)
-            values = values.tolist() if T is float else list(values)
+            values = self.law_input.Eval(context).tolist()  # floats, or AutoDiffXd objects
             integral = context.get_discrete_state(self._state_index).CopyToVector()
             offsets, rates = self._law(values, integral.tolist())
             discrete_state.get_mutable_vector(self._state_index).SetFromVector(
@@ -391,13 +385,12 @@ class OptimalAdmittance(Diagram):
         self._initial_force_error = initial
         self._integrator = None
         if continuous:
-            split = builder.AddNamedSystem("split", Demultiplexer([law.num_axes, size]))
-            integrator = builder.AddNamedSystem("integral", Integrator(size))
-            builder.Connect(law.reference_offset_and_rate_output, split.get_input_port())
-            builder.Connect(split.get_output_port(1), integrator.get_input_port())
-            builder.Connect(integrator.get_output_port(), inputs.get_input_port(3))
-            builder.ExportOutput(split.get_output_port(0), "reference_offset")
-            self._integrator = integrator
+            self._integrator = AddLawIntegral(
+                builder,
+                law.reference_offset_and_rate_output,
+                inputs.get_input_port(3),
+                "reference_offset",
+            )
         else:
             builder.ExportOutput(law.reference_offset_output, "reference_offset")
         builder.BuildInto(self)

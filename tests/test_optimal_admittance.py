@@ -154,6 +154,29 @@ def test_sampled_law_on_three_axes_keeps_one_integral_and_one_held_offset_each()
     np.testing.assert_allclose(held, GAMMA * K * ALPHA * errors)
 
 
+def test_continuous_law_on_three_axes_keeps_each_axis_to_its_own_integral():
+    """Three force axes, one integral each: Xr_i = Gamma K (z_i + alpha (E_i - E0_i)) and
+    dz_i/dt = E_i, with E0 = 0 (the default). By hand: E = (2, 1, -1) N, z = (0.1, 0.2, 0.3)
+    N s, Gamma K = 0.025 m/(N s), alpha = 0.1 s."""
+    block = _block(force_axes=[0, 1, 2], gamma=[GAMMA] * 3, alpha=[ALPHA] * 3, stiffness=[K] * 3)
+    context = block.CreateDefaultContext()
+    block.measured_force_input.FixValue(context, [3.0, 4.0, 6.0])
+    block.desired_force_input.FixValue(context, [5.0, 5.0, 5.0])
+    block.set_integral(context, [0.1, 0.2, 0.3])
+    errors = np.array([2.0, 1.0, -1.0])
+    expected = 0.025 * (np.array([0.1, 0.2, 0.3]) + 0.1 * errors)  # (5, 7.5, 5) mm
+    np.testing.assert_allclose(block.reference_offset_output.Eval(context), expected, rtol=1e-12)
+    np.testing.assert_allclose(block.EvalTimeDerivatives(context).CopyToVector(), errors)
+
+
+def test_the_continuous_law_has_no_integral_state_to_set():
+    """The continuous law's z is its input (the Integrator's state): setting it on the law
+    alone is refused, and the block sets the Integrator's."""
+    block = _block()
+    with pytest.raises(ValueError, match="integral is its input"):
+        block.law.set_integral(block.law.CreateDefaultContext(), [0.4])
+
+
 def test_sampled_anti_windup_time_constant_is_five_periods():
     """Past max_push the sampled integral is pulled back at (Xr_clamped - Xr) / (Gamma K
     tau_aw) with tau_aw = max(10 ms, 5 periods): 50 ms at a 10 ms period."""
