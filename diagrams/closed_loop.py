@@ -25,6 +25,7 @@ from pydrake.systems.primitives import (
 )
 
 from admittance.diagrams.force_controllers import WALL_NORMAL_AXIS, AddForceController
+from admittance.diagrams.safety import AddSafetyLayer, SafetyLayer
 from admittance.diagrams.scenario import Scenario, ScenarioError
 from admittance.systems.cartesian_pid import CartesianPid
 from admittance.systems.compliant_wall import CompliantWall
@@ -207,6 +208,10 @@ def BuildClosedLoop(
         builder.Connect(trajectory.desired_position_output, commanded.get_input_port(0))
         builder.ExportInput(commanded.get_input_port(1), "reference_offset")
         builder.Connect(commanded.get_output_port(), pid.commanded_position_input)
+    elif scenario.safety.enabled:
+        admittance = AddSafetyLayer(
+            builder, scenario, plant=plant, pid=pid, trajectory=trajectory, analysis=analysis
+        )
     else:
         admittance = AddForceController(builder, scenario)
     if admittance is not None:
@@ -244,6 +249,8 @@ def BuildClosedLoop(
         }
         if admittance is not None:
             ports["reference_offset"] = admittance.reference_offset_output
+        if isinstance(admittance, SafetyLayer):
+            ports.update(admittance.log_ports())
         for name, port in ports.items():
             logger = LogVectorOutput(port, builder, period)
             logger.set_name(f"log_{name}")
@@ -390,7 +397,9 @@ def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
     if np.all(loop.pid.gains["ki"] > 0):
         loop.pid.set_integral(pid_context, loop.pid.holding_integral(state, -gravity))
 
-    if hasattr(loop.admittance, "set_initial_force_error"):
+    if isinstance(loop.admittance, SafetyLayer):
+        loop.admittance.initialize(context)
+    elif hasattr(loop.admittance, "set_initial_force_error"):
         measured = loop.sensor.measured_force_output.Eval(loop.sensor.GetMyContextFromRoot(context))
         admittance_context = loop.admittance.GetMyMutableContextFromRoot(context)
         loop.admittance.set_initial_force_error(

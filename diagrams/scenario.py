@@ -33,6 +33,7 @@ __all__ = [
     "LoggingConfig",
     "PidConfig",
     "Scenario",
+    "SafetyConfig",
     "ScenarioError",
     "SensorConfig",
     "StiffnessStep",
@@ -214,6 +215,20 @@ class ArmConfig:
 
 
 @dataclass
+class SafetyConfig:
+    # The safety layer (docs/safety.md): a bounded approach, a stiffness-aware Gamma and a
+    # sensor monitor around the paper's law; false = the paper's law as printed.
+    enabled: bool = False
+    # Ke_max, the stated upper bound on the wall's stiffness, N/m: it sets the approach
+    # speed and the damping along the normal.
+    max_stiffness: float = 1e6
+    # The factor between the reduced model's critical Gamma and the scheduled Gamma.
+    stability_margin: float = 3.0
+    # Damping ratio of the contact mode at max_stiffness (a first contact bounces below 0.19).
+    damping_ratio: float = 0.25
+
+
+@dataclass
 class LoggingConfig:
     # Logging period, s (0 = one sample per integrator step).
     period: float = 0.0
@@ -236,6 +251,7 @@ class Scenario:
     arm: ArmConfig = field(default_factory=ArmConfig)
     simulator: SimulatorConfig = field(default_factory=_default_simulator_config)
     logging: LoggingConfig = field(default_factory=LoggingConfig)
+    safety: SafetyConfig = field(default_factory=SafetyConfig)
     # Injected faults (reliability studies); none by default.
     faults: list[FaultConfig] = field(default_factory=list)
     # Name of the scenario (informational).
@@ -684,7 +700,53 @@ def validate(scenario: Scenario) -> Scenario:
         ">= 0 s (0 = every step)",
         s.logging.period,
     )
+    _validate_safety(s)
     return scenario
+
+
+def _validate_safety(s: Scenario) -> None:
+    """Range checks of safety.*, and what the layer needs of the rest of the scenario."""
+    g = s.safety
+    finite = math.isfinite
+    _require(
+        finite(g.max_stiffness) and 0 < g.max_stiffness <= MAX_STIFFNESS,
+        "safety.max_stiffness",
+        f"in (0, {MAX_STIFFNESS:g}] N/m",
+        g.max_stiffness,
+    )
+    _require(
+        finite(g.stability_margin) and 1 <= g.stability_margin <= 100,
+        "safety.stability_margin",
+        "in [1, 100]",
+        g.stability_margin,
+    )
+    _require(
+        finite(g.damping_ratio) and 0.2 <= g.damping_ratio <= 2,
+        "safety.damping_ratio",
+        "in [0.2, 2] (a first contact bounces below 0.19)",
+        g.damping_ratio,
+    )
+    if not g.enabled:
+        return
+    _require(
+        s.controller_kind == "optimal_admittance",
+        "safety.enabled",
+        "used with the paper's controller (controller.kind optimal_admittance, "
+        "admittance.enabled true)",
+        g.enabled,
+    )
+    _require(
+        finite(s.admittance.max_force),
+        "admittance.max_force",
+        "finite with safety.enabled (the layer keeps the force under it)",
+        s.admittance.max_force,
+    )
+    _require(
+        s.admittance.period == 0 and s.pid.period == 0,
+        "safety.enabled",
+        "used with the continuous controller (admittance.period and pid.period 0)",
+        g.enabled,
+    )
 
 
 # --- loading ----------------------------------------------------------------------------
