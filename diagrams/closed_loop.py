@@ -9,6 +9,7 @@ Xd --(+)--> Xc --> CartesianPid --tau--> plant --state--> CompliantWall --F--> s
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from pydrake.common import RandomDistribution, RandomGenerator
@@ -26,7 +27,17 @@ from pydrake.systems.primitives import (
 
 from admittance.diagrams.force_controllers import WALL_NORMAL_AXIS, AddForceController
 from admittance.diagrams.safety import AddSafetyLayer, SafetyLayer
-from admittance.diagrams.scenario import Scenario, ScenarioError
+from admittance.diagrams.scenario import (
+    ArmConfig,
+    FaultConfig,
+    LoggingConfig,
+    PidConfig,
+    Scenario,
+    ScenarioError,
+    SensorConfig,
+    TrajectoryConfig,
+    WallConfig,
+)
 from admittance.systems.cartesian_pid import CartesianPid
 from admittance.systems.compliant_wall import CompliantWall
 from admittance.systems.desired_trajectory import DesiredTrajectory
@@ -35,8 +46,10 @@ from admittance.systems.planar_kinematics import PlanarFrameKinematics
 from admittance.systems.sensor_fault import SensorFault
 
 __all__ = [
+    "CheckScenarioStarts",
     "ClosedLoop",
     "AddPlanarArm",
+    "AddScenarioArm",
     "BuildClosedLoop",
     "SetInitialConditions",
     "SolvePlanarInverseKinematics",
@@ -63,44 +76,248 @@ class ClosedLoop:
     scene_graph: object | None = None
 
 
-def AddPlanarArm(builder: DiagramBuilder, scenario: Scenario):
-    """Adds the arm of `scenario.arm` as a continuous MultibodyPlant, gravity along -y.
+def AddPlanarArm(
+    builder: DiagramBuilder,
+    urdf: str | Path,
+    *,
+    fingertip_frame: str = "fingertip",
+    reflected_inertia: bool = False,
+):
+    """Adds the arm of the URDF file `urdf` as a continuous MultibodyPlant, gravity along -y.
+
+    Args:
+        urdf: the URDF file (a path; ``ArmConfig.urdf_path()`` resolves a scenario's).
+        fingertip_frame: the frame at the contact point, which the URDF must have.
+        reflected_inertia: keep the motors' reflected inertia (``drake:rotor_inertia`` and
+            ``drake:gear_ratio``); False zeroes it, the paper's rigid-body model.
 
     Returns:
         (plant, scene_graph), the plant finalized.
+
+    Raises:
+        ScenarioError: (arm.fingertip_frame) the URDF has no such frame.
     """
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
     plant.set_name("plant")
     scene_graph.set_name("scene_graph")
-    Parser(plant).AddModels(str(scenario.urdf_path()))
+    Parser(plant).AddModels(str(urdf))
     plant.mutable_gravity_field().set_gravity_vector(GRAVITY_W)
-    if not scenario.arm.reflected_inertia:
+    if not reflected_inertia:
         for index in plant.GetJointActuatorIndices():
             plant.get_mutable_joint_actuator(index).set_default_rotor_inertia(0.0)
     plant.Finalize()
-    if not plant.HasFrameNamed(scenario.arm.fingertip_frame):
-        raise ScenarioError(
-            f"arm.fingertip_frame: the URDF has no frame named '{scenario.arm.fingertip_frame}'"
-        )
+    if not plant.HasFrameNamed(fingertip_frame):
+        raise ScenarioError(f"arm.fingertip_frame: the URDF has no frame named '{fingertip_frame}'")
     return plant, scene_graph
 
 
-def _stiffness_schedule(scenario: Scenario) -> list[tuple[float, float]]:
-    """Ke steps of the scenario, with each stiffness_jump fault as a step and a step back."""
-    steps = sorted((s.time, s.stiffness) for s in scenario.wall.stiffness_steps)
+def _stiffness_schedule(wall: WallConfig, faults: list[FaultConfig]) -> list[tuple[float, float]]:
+    """Ke steps of the wall, with each stiffness_jump fault as a step and a step back."""
+    steps = sorted((s.time, s.stiffness) for s in wall.stiffness_steps)
 
     def scheduled(time: float) -> float:
-        value = scenario.wall.stiffness
+        value = wall.stiffness
         for step_time, stiffness in steps:
             if step_time <= time:
                 value = stiffness
         return value
 
-    for fault in (f for f in scenario.faults if f.kind == "stiffness_jump"):
+    for fault in (f for f in faults if f.kind == "stiffness_jump"):
         after = scheduled(fault.end)
         steps = [step for step in steps if not fault.start <= step[0] < fault.end]
         steps = sorted(steps + [(fault.start, fault.value), (fault.end, after)])
     return steps
+
+
+def AddScenarioArm(builder: DiagramBuilder, arm: ArmConfig):
+    """:func:`AddPlanarArm` with the settings of a scenario's `arm` section."""
+    return AddPlanarArm(
+        builder,
+        arm.urdf_path(),
+        fingertip_frame=arm.fingertip_frame,
+        reflected_inertia=arm.reflected_inertia,
+    )
+
+
+def _AddDesiredTrajectory(builder: DiagramBuilder, trajectory: TrajectoryConfig):
+    """Xd of eq. 19."""
+    system = builder.AddSystem(
+        DesiredTrajectory(
+            center=trajectory.center,
+            amplitude=trajectory.amplitude,
+            frequency=trajectory.frequency,
+        )
+    )
+    system.set_name("desired_trajectory")
+    return system
+
+
+def _AddWall(
+    builder: DiagramBuilder,
+    plant: MultibodyPlant,
+    fingertip_frame: str,
+    wall: WallConfig,
+    faults: list[FaultConfig],
+) -> CompliantWall:
+    """The wall of eq. 4, pushing on the fingertip; with its faults (a retract, a jump of Ke)."""
+    system = builder.AddSystem(
+        CompliantWall(
+            plant,
+            frame_name=fingertip_frame,
+            position=wall.position,
+            stiffness=wall.stiffness,
+            stiffness_steps=_stiffness_schedule(wall, faults),
+            velocity=wall.velocity,
+            motion_start=wall.motion_start,
+            motion_end=wall.motion_end,
+            position_offsets=[
+                (f.start, f.end, f.value) for f in faults if f.kind == "wall_retract"
+            ],
+        )
+    )
+    system.set_name("compliant_wall")
+    builder.Connect(plant.get_state_output_port(), system.estimated_state_input)
+    builder.Connect(
+        system.applied_spatial_force_output, plant.get_applied_spatial_force_input_port()
+    )
+    return system
+
+
+def _AddSensor(
+    builder: DiagramBuilder,
+    contact_force_output,
+    sensor: SensorConfig,
+    faults: list[FaultConfig],
+    *,
+    noise: bool,
+):
+    """The force sensor on the wall's contact force, its faults and its noise source.
+
+    Returns:
+        (the sensor, the port of the force it reports, the random sources added).
+    """
+    system = builder.AddSystem(
+        FlexiForceSensor(kind=sensor.kind, filter_cutoff_hz=sensor.filter_cutoff)
+    )
+    system.set_name("flexiforce_sensor")
+    builder.Connect(contact_force_output, system.contact_force_input)
+    measured_force_output = system.measured_force_output
+    sensor_faults = [
+        (f.kind, f.start, f.end, f.value) for f in faults if f.kind.startswith("sensor_")
+    ]
+    if sensor_faults:
+        fault = builder.AddSystem(SensorFault(sensor_faults))
+        fault.set_name("sensor_fault")
+        builder.Connect(system.measured_force_output, fault.measured_force_input)
+        measured_force_output = fault.reported_force_output
+    random_sources = []
+    if noise and sensor.kind != "ideal" and sensor.noise_std > 0:
+        source = builder.AddSystem(
+            RandomSource(RandomDistribution.kGaussian, 1, sensor.noise_period)
+        )
+        source.set_name("sensor_noise")
+        random_sources.append(source)
+        gain = builder.AddSystem(Gain(sensor.noise_std, 1))
+        gain.set_name("noise_std")
+        builder.Connect(source.get_output_port(0), gain.get_input_port())
+        builder.Connect(gain.get_output_port(), system.noise_input)
+    else:
+        zero = builder.AddSystem(ConstantVectorSource([0.0]))
+        zero.set_name("no_noise")
+        builder.Connect(zero.get_output_port(), system.noise_input)
+    return system, measured_force_output, random_sources
+
+
+def _AddPid(
+    builder: DiagramBuilder,
+    plant: MultibodyPlant,
+    fingertip_frame: str,
+    pid: PidConfig,
+    desired_velocity_output,
+) -> CartesianPid:
+    """The Cartesian PID of eq. 14-16 driving the arm's actuators (its Xc is wired later)."""
+    system = builder.AddSystem(
+        CartesianPid(
+            plant,
+            frame_name=fingertip_frame,
+            kp=pid.kp,
+            kd=pid.kd,
+            ki=pid.ki,
+            period=pid.period,
+        )
+    )
+    system.set_name("cartesian_pid")
+    builder.Connect(plant.get_state_output_port(), system.estimated_state_input)
+    builder.Connect(system.actuation_output, plant.get_actuation_input_port())
+    builder.Connect(desired_velocity_output, system.commanded_velocity_input)
+    return system
+
+
+def _AddCommandedPosition(builder: DiagramBuilder, desired_position_output, pid: CartesianPid):
+    """Xc = Xd + Xr into the PID; returns the adder, whose input 1 takes Xr."""
+    commanded = builder.AddSystem(Adder(2, 3))
+    commanded.set_name("commanded_position")
+    builder.Connect(desired_position_output, commanded.get_input_port(0))
+    builder.Connect(commanded.get_output_port(), pid.commanded_position_input)
+    return commanded
+
+
+def _AddForceLoop(
+    builder: DiagramBuilder,
+    scenario: Scenario,
+    trajectory: DesiredTrajectory,
+    pid: CartesianPid,
+    measured_force_output,
+    *,
+    analysis: bool,
+    open_admittance_loop: bool,
+    plant: MultibodyPlant,
+):
+    """The force controller of scenario.controller_kind (its gains come from several
+    sections: the admittance, the controller, the PID's Kp, the wall), closing Xr into Xc.
+
+    Returns:
+        the force controller, or None (pid_only, or the admittance loop left open).
+    """
+    if open_admittance_loop:
+        if not analysis:
+            raise ValueError("open_admittance_loop is for analysis diagrams only")
+        commanded = _AddCommandedPosition(builder, trajectory.desired_position_output, pid)
+        builder.ExportInput(commanded.get_input_port(1), "reference_offset")
+        return None
+    if scenario.safety.enabled:
+        controller = AddSafetyLayer(
+            builder, scenario, plant=plant, pid=pid, trajectory=trajectory, analysis=analysis
+        )
+    else:
+        controller = AddForceController(builder, scenario)
+    if controller is None:
+        builder.Connect(trajectory.desired_position_output, pid.commanded_position_input)
+        return None
+    if analysis:
+        # Fr is an input of the analysis diagram (fix it in the context), so that the
+        # linear model has Fr -> contact force.
+        builder.ExportInput(controller.desired_force_input, "force_reference")
+    else:
+        force_reference = builder.AddSystem(ConstantVectorSource([scenario.force_reference]))
+        force_reference.set_name("force_reference")
+        builder.Connect(force_reference.get_output_port(), controller.desired_force_input)
+    builder.Connect(measured_force_output, controller.measured_force_input)
+    if hasattr(controller, "desired_position_input"):  # eq. 6 subtracts Xd
+        builder.Connect(trajectory.desired_position_output, controller.desired_position_input)
+    commanded = _AddCommandedPosition(builder, trajectory.desired_position_output, pid)
+    builder.Connect(controller.reference_offset_output, commanded.get_input_port(1))
+    return controller
+
+
+def _AddLoggers(builder: DiagramBuilder, ports: dict, logging: LoggingConfig) -> dict:
+    """A VectorLogSink on each port, named log_<name>."""
+    loggers = {}
+    for name, port in ports.items():
+        logger = LogVectorOutput(port, builder, logging.period)
+        logger.set_name(f"log_{name}")
+        loggers[name] = logger
+    return loggers
 
 
 def BuildClosedLoop(
@@ -119,127 +336,29 @@ def BuildClosedLoop(
             admittance block closes, for the analysis of a sampled admittance block.
     """
     builder = DiagramBuilder()
-    plant, scene_graph = AddPlanarArm(builder, scenario)
     frame = scenario.arm.fingertip_frame
-
-    trajectory = builder.AddSystem(
-        DesiredTrajectory(
-            center=scenario.trajectory.center,
-            amplitude=scenario.trajectory.amplitude,
-            frequency=scenario.trajectory.frequency,
-        )
+    plant, scene_graph = AddScenarioArm(builder, scenario.arm)
+    trajectory = _AddDesiredTrajectory(builder, scenario.trajectory)
+    wall = _AddWall(builder, plant, frame, scenario.wall, scenario.faults)
+    sensor, measured_force_output, random_sources = _AddSensor(
+        builder, wall.contact_force_output, scenario.sensor, scenario.faults, noise=not analysis
     )
-    trajectory.set_name("desired_trajectory")
-
-    wall_config = scenario.wall
-    wall = builder.AddSystem(
-        CompliantWall(
-            plant,
-            frame_name=frame,
-            position=wall_config.position,
-            stiffness=wall_config.stiffness,
-            stiffness_steps=_stiffness_schedule(scenario),
-            velocity=wall_config.velocity,
-            motion_start=wall_config.motion_start,
-            motion_end=wall_config.motion_end,
-            position_offsets=[
-                (f.start, f.end, f.value) for f in scenario.faults if f.kind == "wall_retract"
-            ],
-        )
+    pid = _AddPid(builder, plant, frame, scenario.pid, trajectory.desired_velocity_output)
+    controller = _AddForceLoop(
+        builder,
+        scenario,
+        trajectory,
+        pid,
+        measured_force_output,
+        analysis=analysis,
+        open_admittance_loop=open_admittance_loop,
+        plant=plant,
     )
-    wall.set_name("compliant_wall")
-    builder.Connect(plant.get_state_output_port(), wall.estimated_state_input)
-    builder.Connect(wall.applied_spatial_force_output, plant.get_applied_spatial_force_input_port())
-
-    sensor_config = scenario.sensor
-    sensor = builder.AddSystem(
-        FlexiForceSensor(kind=sensor_config.kind, filter_cutoff_hz=sensor_config.filter_cutoff)
-    )
-    sensor.set_name("flexiforce_sensor")
-    builder.Connect(wall.contact_force_output, sensor.contact_force_input)
-    measured_force_output = sensor.measured_force_output
-    sensor_faults = [
-        (f.kind, f.start, f.end, f.value) for f in scenario.faults if f.kind.startswith("sensor_")
-    ]
-    if sensor_faults:
-        fault = builder.AddSystem(SensorFault(sensor_faults))
-        fault.set_name("sensor_fault")
-        builder.Connect(sensor.measured_force_output, fault.measured_force_input)
-        measured_force_output = fault.reported_force_output
-    random_sources = []
-    noisy = sensor_config.kind != "ideal" and sensor_config.noise_std > 0 and not analysis
-    if noisy:
-        source = builder.AddSystem(
-            RandomSource(RandomDistribution.kGaussian, 1, sensor_config.noise_period)
-        )
-        source.set_name("sensor_noise")
-        random_sources.append(source)
-        gain = builder.AddSystem(Gain(sensor_config.noise_std, 1))
-        gain.set_name("noise_std")
-        builder.Connect(source.get_output_port(0), gain.get_input_port())
-        builder.Connect(gain.get_output_port(), sensor.noise_input)
-    else:
-        zero = builder.AddSystem(ConstantVectorSource([0.0]))
-        zero.set_name("no_noise")
-        builder.Connect(zero.get_output_port(), sensor.noise_input)
-
-    pid_config = scenario.pid
-    pid = builder.AddSystem(
-        CartesianPid(
-            plant,
-            frame_name=frame,
-            kp=pid_config.kp,
-            kd=pid_config.kd,
-            ki=pid_config.ki,
-            period=pid_config.period,
-        )
-    )
-    pid.set_name("cartesian_pid")
-    builder.Connect(plant.get_state_output_port(), pid.estimated_state_input)
-    builder.Connect(pid.actuation_output, plant.get_actuation_input_port())
-    builder.Connect(trajectory.desired_velocity_output, pid.commanded_velocity_input)
-
-    admittance = None
-    if open_admittance_loop:
-        if not analysis:
-            raise ValueError("open_admittance_loop is for analysis diagrams only")
-        commanded = builder.AddSystem(Adder(2, 3))
-        commanded.set_name("commanded_position")
-        builder.Connect(trajectory.desired_position_output, commanded.get_input_port(0))
-        builder.ExportInput(commanded.get_input_port(1), "reference_offset")
-        builder.Connect(commanded.get_output_port(), pid.commanded_position_input)
-    elif scenario.safety.enabled:
-        admittance = AddSafetyLayer(
-            builder, scenario, plant=plant, pid=pid, trajectory=trajectory, analysis=analysis
-        )
-    else:
-        admittance = AddForceController(builder, scenario)
-    if admittance is not None:
-        if analysis:
-            # Fr is an input of the analysis diagram (fix it in the context), so that the
-            # linear model has Fr -> contact force.
-            builder.ExportInput(admittance.desired_force_input, "force_reference")
-        else:
-            force_reference = builder.AddSystem(ConstantVectorSource([scenario.force_reference]))
-            force_reference.set_name("force_reference")
-            builder.Connect(force_reference.get_output_port(), admittance.desired_force_input)
-        builder.Connect(measured_force_output, admittance.measured_force_input)
-        if hasattr(admittance, "desired_position_input"):  # eq. 6 subtracts Xd
-            builder.Connect(trajectory.desired_position_output, admittance.desired_position_input)
-        commanded = builder.AddSystem(Adder(2, 3))
-        commanded.set_name("commanded_position")
-        builder.Connect(trajectory.desired_position_output, commanded.get_input_port(0))
-        builder.Connect(admittance.reference_offset_output, commanded.get_input_port(1))
-        builder.Connect(commanded.get_output_port(), pid.commanded_position_input)
-    elif not open_admittance_loop:
-        builder.Connect(trajectory.desired_position_output, pid.commanded_position_input)
-
     loggers = {}
     if analysis:
         builder.ExportOutput(wall.contact_force_output, "contact_force")
         builder.ExportOutput(measured_force_output, "measured_force")
     else:
-        period = scenario.logging.period
         ports = {
             "state": plant.get_state_output_port(),
             "contact_force": wall.contact_force_output,
@@ -247,14 +366,11 @@ def BuildClosedLoop(
             "actuation": pid.actuation_output,
             "desired_position": trajectory.desired_position_output,
         }
-        if admittance is not None:
-            ports["reference_offset"] = admittance.reference_offset_output
-        if isinstance(admittance, SafetyLayer):
-            ports.update(admittance.log_ports())
-        for name, port in ports.items():
-            logger = LogVectorOutput(port, builder, period)
-            logger.set_name(f"log_{name}")
-            loggers[name] = logger
+        if controller is not None:
+            ports["reference_offset"] = controller.reference_offset_output
+        if isinstance(controller, SafetyLayer):
+            ports.update(controller.log_ports())
+        loggers = _AddLoggers(builder, ports, scenario.logging)
 
     diagram = builder.Build()
     diagram.set_name("optimal_admittance_loop")
@@ -266,7 +382,7 @@ def BuildClosedLoop(
         pid=pid,
         wall=wall,
         sensor=sensor,
-        admittance=admittance,
+        admittance=controller,
         random_sources=random_sources,
         loggers=loggers,
         scene_graph=scene_graph,
@@ -307,32 +423,76 @@ def SolvePlanarInverseKinematics(
     raise ValueError(f"the pose {target.tolist()} is not reachable from the seed {guess.tolist()}")
 
 
-def CheckTrajectoryReachable(loop: ClosedLoop, samples: int = 16) -> None:
-    """Rejects a desired trajectory the arm cannot reach, naming the point.
+def _joint_speeds(loop: ClosedLoop, positions: np.ndarray, cartesian_velocity) -> np.ndarray:
+    """Joint speeds that move the fingertip at `cartesian_velocity` (x, y, theta) from q."""
+    kinematics = PlanarFrameKinematics(loop.plant, loop.scenario.arm.fingertip_frame)
+    kinematics.set_state(np.concatenate([positions, np.zeros(loop.plant.num_velocities())]))
+    return np.linalg.lstsq(kinematics.jacobian(), np.asarray(cartesian_velocity), rcond=None)[0]
 
-    Samples Xd over one period of eq. 19 (and the pose pushed to the wall surface, which
-    the admittance block may ask for) and solves the inverse kinematics of each.
+
+def _beyond_velocity_limits(loop: ClosedLoop, speeds: np.ndarray) -> str | None:
+    """None, or the words of a message naming the speeds and the URDF's limits."""
+    limits = loop.plant.GetVelocityUpperLimits()
+    if np.all(np.abs(speeds) <= limits):
+        return None
+    needed = ", ".join(f"{abs(v):.3g}" for v in speeds)
+    allowed = ", ".join(f"{v:.3g}" for v in limits)
+    return f"joint speeds ({needed}) rad/s, beyond the URDF's velocity limits ({allowed}) rad/s"
+
+
+def CheckTrajectoryReachable(loop: ClosedLoop, samples: int = 16) -> None:
+    """Rejects a desired trajectory the arm cannot reach or cannot follow, naming the point.
+
+    Samples Xd over one period of eq. 19 and solves the inverse kinematics of each point;
+    at each, the joint speeds that follow dXd/dt must stay within the URDF's velocity
+    limits (an arm cannot follow a faster plan, and the integrator would crawl after it).
 
     Raises:
         ScenarioError: `trajectory.center` / `trajectory.amplitude` with the first point
-            out of reach.
+            out of reach; `trajectory.frequency` / `trajectory.amplitude` with the first
+            point too fast.
     """
     scenario = loop.scenario
     frequency = scenario.trajectory.frequency
     period = 1.0 / frequency if frequency > 0 else 0.0
     seed = scenario.arm.joint_guess
     for k in range(samples if period > 0 else 1):
-        point = loop.trajectory.position_at(k * period / samples)
+        time = k * period / samples
+        point = loop.trajectory.position_at(time)
+        where = ", ".join(f"{v:.4g}" for v in point)
         try:
             seed = SolvePlanarInverseKinematics(
                 loop.plant, scenario.arm.fingertip_frame, point, seed
             )
         except ValueError:
-            where = ", ".join(f"{v:.4g}" for v in point)
             raise ScenarioError(
                 f"trajectory.center, trajectory.amplitude: the desired point ({where}) is out "
                 "of the arm's reach"
             ) from None
+        too_fast = _beyond_velocity_limits(
+            loop, _joint_speeds(loop, seed, loop.trajectory.velocity_at(time))
+        )
+        if too_fast:
+            raise ScenarioError(
+                f"trajectory.frequency, trajectory.amplitude: following the desired motion "
+                f"at ({where}) needs {too_fast}"
+            )
+
+
+def _check_wall_speed_within_velocity_limits(loop: ClosedLoop, plant_context) -> None:
+    """Rejects a wall that moves faster than the arm can follow from its initial pose."""
+    wall = loop.scenario.wall
+    if wall.velocity == 0.0 or wall.motion_start >= loop.scenario.duration:
+        return
+    push = np.zeros(3)
+    push[WALL_NORMAL_AXIS] = wall.velocity
+    positions = loop.plant.GetPositions(plant_context)
+    too_fast = _beyond_velocity_limits(loop, _joint_speeds(loop, positions, push))
+    if too_fast:
+        raise ScenarioError(
+            f"wall.velocity: following the wall at {wall.velocity:g} m/s from the initial pose "
+            f"needs {too_fast}"
+        )
 
 
 def _check_force_within_effort_limits(loop: ClosedLoop, plant_context, gravity) -> None:
@@ -392,6 +552,7 @@ def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
 
     gravity = plant.CalcGravityGeneralizedForces(plant_context)
     _check_force_within_effort_limits(loop, plant_context, gravity)
+    _check_wall_speed_within_velocity_limits(loop, plant_context)
     state = plant.GetPositionsAndVelocities(plant_context)
     pid_context = loop.pid.GetMyMutableContextFromRoot(context)
     if np.all(loop.pid.gains["ki"] > 0):
@@ -405,3 +566,14 @@ def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
         loop.admittance.set_initial_force_error(
             admittance_context, np.array([scenario.force_reference]) - measured
         )
+
+
+def CheckScenarioStarts(scenario: Scenario) -> None:
+    """Raises ScenarioError if `scenario` cannot start: a pose or a plan out of reach, a
+    plan or a wall faster than the joints' velocity limits, a force beyond their efforts.
+
+    The checks of SetInitialConditions, on a loop built for them alone: for commands that
+    would otherwise find out only after their first stage.
+    """
+    loop = BuildClosedLoop(scenario)
+    SetInitialConditions(loop, loop.diagram.CreateDefaultContext())

@@ -11,13 +11,16 @@ what is allowed; nothing deeper than this module sees unvalidated values.
 
 # No "from __future__ import annotations": yaml_load_typed reads the real field types.
 
+import copy
 import dataclasses
 import difflib
+import functools
 import math
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import yaml  # PyYAML, which pydrake.common.yaml is built on
 from pydrake.common.yaml import yaml_dump_typed, yaml_load, yaml_load_typed
 from pydrake.systems.analysis import SimulatorConfig
 
@@ -54,7 +57,7 @@ class ScenarioError(ValueError):
 def _default_simulator_config() -> SimulatorConfig:
     # The loop is stiff (wall up to 1e5 N/m, Kd = 5 on a light last link: a pole near
     # -1e4 1/s); an implicit integrator with error control takes a few hundred steps where
-    # an explicit one takes ~150,000. See README, "Integrator".
+    # an explicit one takes ~150,000. See docs/speed.md, "Integrator".
     return SimulatorConfig(
         integration_scheme="radau3",
         accuracy=1e-4,
@@ -105,6 +108,10 @@ FAULT_KINDS = (
     "wall_retract",
     "stiffness_jump",
 )
+
+
+# The fault kinds that read `value`.
+FAULT_KINDS_WITH_VALUE = ("sensor_stuck", "sensor_saturated", "wall_retract", "stiffness_jump")
 
 
 @dataclass
@@ -164,7 +171,7 @@ class ControllerConfig:
     # fixed_reference: relative error of its stiffness estimate (0.1 = 10 % too stiff).
     stiffness_error: float = 0.0
     # Baseline gains: "matched" derives them from the paper's law (same force-loop
-    # crossover Kp Gamma K, README "Comparison"); "manual" takes the values below.
+    # crossover Kp Gamma K, docs/comparison.md); "manual" takes the values below.
     tuning: str = "matched"
     # classical_admittance and adaptive_impedance (manual tuning): virtual mass, kg,
     mass: float = 0.16
@@ -212,6 +219,13 @@ class ArmConfig:
     joint_guess: list[float] = field(default_factory=lambda: [-0.45, 1.66, 0.36])
     # Initial fingertip pose (x m, y m, theta rad); empty = Xd(0). The arm starts at rest.
     initial_position: list[float] = field(default_factory=list)
+
+    def urdf_path(self) -> Path:
+        """The URDF file: `urdf` as a path if it names a file, else a built-in model."""
+        path = Path(self.urdf).expanduser()
+        if path.is_absolute() or path.is_file():
+            return path
+        return URDF_DIR / path
 
 
 @dataclass
@@ -262,17 +276,10 @@ class Scenario:
         """The force controller that runs: admittance.enabled = false means pid_only."""
         return self.controller.kind if self.admittance.enabled else "pid_only"
 
-    def urdf_path(self) -> Path:
-        """The arm's URDF file: `arm.urdf` as a path if it names a file, else a built-in."""
-        path = Path(self.arm.urdf).expanduser()
-        if path.is_absolute() or path.is_file():
-            return path
-        return URDF_DIR / path
-
 
 # --- keys and types ---------------------------------------------------------------------
 
-_INTEGRATION_SCHEMES = (
+INTEGRATION_SCHEMES = (
     "bogacki_shampine3",
     "explicit_euler",
     "implicit_euler",
@@ -325,6 +332,30 @@ def _describe(kind) -> str:
     }.get(kind, getattr(kind, "__name__", str(kind)))
 
 
+# The fields a list entry must give: left out, they would silently take the dataclass's
+# default (a fault from 1 s to 1.5 s, a stiffness step to 1e5 N/m at 15 s).
+_ENTRY_FIELDS = {
+    StiffnessStep: ("time", "stiffness"),
+    FaultConfig: ("kind", "start", "end"),
+}
+_ENTRY_DESCRIPTIONS = {
+    StiffnessStep: "a stiffness step needs time (s) and stiffness (N/m)",
+    FaultConfig: (
+        "a fault needs kind, start and end (s), and value for " + ", ".join(FAULT_KINDS_WITH_VALUE)
+    ),
+}
+
+
+def _check_entry_complete(key: str, entry: dict, kind) -> None:
+    """Raises ScenarioError naming the first field that a list entry leaves out."""
+    required = list(_ENTRY_FIELDS.get(kind, ()))
+    if kind is FaultConfig and entry.get("kind") in FAULT_KINDS_WITH_VALUE:
+        required.append("value")
+    for name in required:
+        if name not in entry:
+            raise ScenarioError(f"{key}.{name}: missing; {_ENTRY_DESCRIPTIONS[kind]}")
+
+
 def _check_type(key: str, value, kind):
     """Returns `value` converted to `kind`, or raises ScenarioError naming `key`."""
     origin = typing.get_origin(kind)
@@ -342,6 +373,7 @@ def _check_type(key: str, value, kind):
                 raise ScenarioError(
                     f"{key}.{name}: unknown key; allowed: {', '.join(sorted(fields))}"
                 )
+        _check_entry_complete(key, value, kind)
         return {name: _check_type(f"{key}.{name}", v, fields[name]) for name, v in value.items()}
     if kind is bool:
         if isinstance(value, bool):
@@ -351,12 +383,16 @@ def _check_type(key: str, value, kind):
         raise ScenarioError(f"{key}: expected true or false, got {value!r}")
     if kind in (int, float):
         expected = "an integer" if kind is int else "a number"
+        if kind is int and isinstance(value, int) and not isinstance(value, bool):
+            return value  # exactly: a float holds integers exactly only up to 2**53
         number = None
         if not isinstance(value, bool):
             try:
                 number = float(value)
             except (TypeError, ValueError):
                 pass
+            except OverflowError:  # an integer beyond a float: out of every range
+                number = math.inf if value > 0 else -math.inf
         if number is None or math.isnan(number) or (kind is int and not number.is_integer()):
             raise ScenarioError(f"{key}: expected {expected}, got {value!r}")
         return int(number) if kind is int else number
@@ -382,8 +418,9 @@ def parse_value(text: str):
     if stripped[:1] in ("[", "{"):
         try:
             return yaml_load(data=f"value: {stripped}")["value"]
-        except RuntimeError as error:
-            raise ScenarioError(f"cannot parse {text!r}: {error}") from None
+        except (RuntimeError, yaml.YAMLError) as error:
+            problem = getattr(error, "problem", None) or str(error).splitlines()[0]
+            raise ScenarioError(f"cannot parse {text!r} as YAML: {problem}") from None
     for convert in (int, float):
         try:
             return convert(stripped)
@@ -403,7 +440,10 @@ def parse_overrides(overrides: typing.Sequence[str]) -> list[tuple[str, typing.A
         key, sep, value = text.partition("=")
         if not sep or not key.strip():
             raise ScenarioError(f"--set {text!r}: expected KEY=VALUE")
-        pairs.append((key.strip(), parse_value(value)))
+        try:
+            pairs.append((key.strip(), parse_value(value)))
+        except ScenarioError as error:
+            raise ScenarioError(f"{key.strip()}: {error}") from None
     return pairs
 
 
@@ -448,312 +488,95 @@ def _set_dotted(data: dict, key: str, value) -> None:
     node[parts[-1]] = value
 
 
-# --- validation -------------------------------------------------------------------------
-
-
-def _require(condition: bool, key: str, allowed: str, value) -> None:
-    if not condition:
-        raise ScenarioError(f"{key}: must be {allowed}, got {value!r}")
-
-
-def _require_one_of(value, key: str, choices: typing.Sequence[str]) -> None:
-    _require(value in choices, key, "one of " + ", ".join(choices), value)
-
-
-# Stiffer than any contact this arm can make (steel on steel at this scale is ~1e9 N/m).
-MAX_STIFFNESS = 1e9
-
-
-def validate(scenario: Scenario) -> Scenario:
-    """Range checks of every key; raises ScenarioError naming the first bad key."""
-    s = scenario
-    finite = math.isfinite
-    _require(finite(s.duration) and 0 < s.duration <= 1e5, "duration", "in (0, 1e5] s", s.duration)
-    _require(s.seed >= 0, "seed", ">= 0", s.seed)
-    _require(
-        finite(s.force_reference) and s.force_reference > 0,
-        "force_reference",
-        "> 0 N (compressive)",
-        s.force_reference,
-    )
-    w = s.wall
-    _require(
-        finite(w.position) and w.position > 0,
-        "wall.position",
-        "in front of the base (> 0 m along x)",
-        w.position,
-    )
-    _require(
-        finite(w.stiffness) and 0 < w.stiffness <= MAX_STIFFNESS,
-        "wall.stiffness",
-        f"in (0, {MAX_STIFFNESS:g}] N/m",
-        w.stiffness,
-    )
-    previous = 0.0
-    for i, step in enumerate(w.stiffness_steps):
-        key = f"wall.stiffness_steps[{i}]"
-        _require(
-            finite(step.stiffness) and 0 < step.stiffness <= MAX_STIFFNESS,
-            key + ".stiffness",
-            f"in (0, {MAX_STIFFNESS:g}] N/m",
-            step.stiffness,
-        )
-        _require(
-            finite(step.time) and step.time >= previous,
-            key + ".time",
-            ">= 0 s and not before the previous step",
-            step.time,
-        )
-        previous = step.time
-    _require(
-        finite(w.velocity) and abs(w.velocity) <= 1.0, "wall.velocity", "in [-1, 1] m/s", w.velocity
-    )
-    _require(
-        finite(w.motion_start) and w.motion_start >= 0,
-        "wall.motion_start",
-        ">= 0 s",
-        w.motion_start,
-    )
-    _require(
-        w.motion_end >= w.motion_start, "wall.motion_end", ">= wall.motion_start", w.motion_end
-    )
-    t = s.trajectory
-    _require(len(t.center) == 3, "trajectory.center", "3 values (x, y, theta)", t.center)
-    _require(all(map(finite, t.center)), "trajectory.center", "finite", t.center)
-    _require(len(t.amplitude) == 3, "trajectory.amplitude", "3 values", t.amplitude)
-    _require(all(map(finite, t.amplitude)), "trajectory.amplitude", "finite", t.amplitude)
-    _require(
-        finite(t.frequency) and t.frequency >= 0, "trajectory.frequency", ">= 0 Hz", t.frequency
-    )
-    a = s.admittance
-    _require(finite(a.gamma) and 0 < a.gamma <= 0.1, "admittance.gamma", "in (0, 0.1]", a.gamma)
-    _require(finite(a.alpha) and 0 <= a.alpha <= 10, "admittance.alpha", "in [0, 10] s", a.alpha)
-    _require(
-        finite(a.period) and a.period >= 0, "admittance.period", ">= 0 s (0 = continuous)", a.period
-    )
-    _require(
-        finite(a.max_push) and 0 < a.max_push <= 0.5,
-        "admittance.max_push",
-        "in (0, 0.5] m",
-        a.max_push,
-    )
-    _require(
-        finite(a.max_retract) and 0 < a.max_retract <= 0.5,
-        "admittance.max_retract",
-        "in (0, 0.5] m",
-        a.max_retract,
-    )
-    _require(
-        a.max_force > s.force_reference,
-        "admittance.max_force",
-        f"> force_reference ({s.force_reference:g} N), or .inf for no bound",
-        a.max_force,
-    )
-    _require(
-        finite(a.force_bound_gain) and 0 < a.force_bound_gain <= 100,
-        "admittance.force_bound_gain",
-        "in (0, 100]",
-        a.force_bound_gain,
-    )
-    k = s.controller
-    _require_one_of(k.kind, "controller.kind", CONTROLLER_KINDS)
-    _require(
-        k.tuning in ("matched", "manual"), "controller.tuning", "'matched' or 'manual'", k.tuning
-    )
-    _require(
-        finite(k.wall_position_error) and abs(k.wall_position_error) <= 0.1,
-        "controller.wall_position_error",
-        "in [-0.1, 0.1] m",
-        k.wall_position_error,
-    )
-    _require(
-        finite(k.stiffness_error) and -0.9 <= k.stiffness_error <= 10,
-        "controller.stiffness_error",
-        "in [-0.9, 10] (relative)",
-        k.stiffness_error,
-    )
-    for name, maximum in (("mass", 1e3), ("damping", 1e6), ("adaptation_rate", 1e4)):
-        value = getattr(k, name)
-        _require(
-            finite(value) and 0 < value <= maximum,
-            f"controller.{name}",
-            f"in (0, {maximum:g}]",
-            value,
-        )
-    _require(
-        finite(k.stiffness) and 0 <= k.stiffness <= 1e6,
-        "controller.stiffness",
-        "in [0, 1e6] N/m",
-        k.stiffness,
-    )
-    for i, fault in enumerate(s.faults):
-        key = f"faults[{i}]"
-        _require_one_of(fault.kind, key + ".kind", FAULT_KINDS)
-        _require(finite(fault.start) and fault.start >= 0, key + ".start", ">= 0 s", fault.start)
-        _require(finite(fault.end) and fault.end > fault.start, key + ".end", "> start", fault.end)
-        _require(finite(fault.value), key + ".value", "finite", fault.value)
-        if fault.kind == "stiffness_jump":
-            _require(
-                0 < fault.value <= MAX_STIFFNESS,
-                key + ".value",
-                f"in (0, {MAX_STIFFNESS:g}] N/m for stiffness_jump",
-                fault.value,
-            )
-        if fault.kind == "wall_retract":
-            _require(
-                fault.value > 0, key + ".value", "> 0 m (the wall moves away, +x)", fault.value
-            )
-        if fault.kind == "sensor_saturated":
-            _require(fault.value > 0, key + ".value", "> 0 N (the full-scale reading)", fault.value)
-    p = s.pid
-    for name, minimum, maximum in (("kp", 0.0, 1e6), ("kd", None, 1e5), ("ki", None, 1e6)):
-        gains = getattr(p, name)
-        key = f"pid.{name}"
-        _require(len(gains) == 3, key, "3 values (x, y, theta)", gains)
-        low = "> 0" if minimum is not None else ">= 0"
-        ok = all(
-            finite(g) and (g > 0 if minimum is not None else g >= 0) and g <= maximum for g in gains
-        )
-        _require(ok, key, f"{low} and <= {maximum:g} on every axis", gains)
-    _require(finite(p.period) and p.period >= 0, "pid.period", ">= 0 s (0 = continuous)", p.period)
-    if a.enabled:
-        # Past max_push only the PID's slow integral could add force: Fr would not be reached.
-        needed = s.force_reference / p.kp[0]
-        _require(
-            a.max_push > needed,
-            "admittance.max_push",
-            f"> force_reference / pid.kp[0] = {needed:.3g} m (the PID's push at the bound, "
-            f"Kp max_push, must exceed Fr)",
-            a.max_push,
-        )
-    n = s.sensor
-    _require(n.kind in ("ideal", "flexiforce"), "sensor.kind", "'ideal' or 'flexiforce'", n.kind)
-    if n.kind == "flexiforce":
-        # A reference the sensor cannot read would wind the admittance up forever.
-        from admittance.systems.flexiforce import FlexiForceSensor
-
-        full_scale = FlexiForceSensor().saturation_force
-        _require(
-            s.force_reference < 0.9 * full_scale,
-            "force_reference",
-            f"< {0.9 * full_scale:.4g} N with sensor.kind=flexiforce (90 % of the A201's "
-            f"{full_scale:.4g} N full scale)",
-            s.force_reference,
-        )
-        _require(
-            not finite(a.max_force) or a.max_force < full_scale,
-            "admittance.max_force",
-            f"< {full_scale:.4g} N with sensor.kind=flexiforce (a bound the A201 cannot read "
-            "cannot be enforced), or .inf",
-            a.max_force,
-        )
-    _require(
-        finite(n.noise_std) and 0 <= n.noise_std <= 100,
-        "sensor.noise_std",
-        "in [0, 100] N",
-        n.noise_std,
-    )
-    _require(
-        finite(n.noise_period) and n.noise_period >= 1e-5,
-        "sensor.noise_period",
-        ">= 1e-5 s (a 100 kHz ADC)",
-        n.noise_period,
-    )
-    _require(
-        finite(n.filter_cutoff) and 0 < n.filter_cutoff <= 1e6,
-        "sensor.filter_cutoff",
-        "in (0, 1e6] Hz",
-        n.filter_cutoff,
-    )
-    r = s.arm
-    _require(s.urdf_path().is_file(), "arm.urdf", "an existing URDF file", r.urdf)
-    _require(
-        len(r.joint_guess) > 0 and all(map(finite, r.joint_guess)),
-        "arm.joint_guess",
-        "finite joint angles",
-        r.joint_guess,
-    )
-    _require(
-        len(r.initial_position) in (0, 3) and all(map(finite, r.initial_position)),
-        "arm.initial_position",
-        "empty or 3 finite values (x, y, theta)",
-        r.initial_position,
-    )
-    c = s.simulator
-    _require_one_of(c.integration_scheme, "simulator.integration_scheme", _INTEGRATION_SCHEMES)
-    _require(
-        finite(c.accuracy) and 0 < c.accuracy <= 0.1,
-        "simulator.accuracy",
-        "in (0, 0.1]",
-        c.accuracy,
-    )
-    _require(
-        finite(c.max_step_size) and c.max_step_size > 0,
-        "simulator.max_step_size",
-        "> 0 s",
-        c.max_step_size,
-    )
-    _require(c.start_time == 0.0, "simulator.start_time", "0", c.start_time)
-    _require(
-        finite(s.logging.period) and s.logging.period >= 0,
-        "logging.period",
-        ">= 0 s (0 = every step)",
-        s.logging.period,
-    )
-    _validate_safety(s)
-    return scenario
-
-
-def _validate_safety(s: Scenario) -> None:
-    """Range checks of safety.*, and what the layer needs of the rest of the scenario."""
-    g = s.safety
-    finite = math.isfinite
-    _require(
-        finite(g.max_stiffness) and 0 < g.max_stiffness <= MAX_STIFFNESS,
-        "safety.max_stiffness",
-        f"in (0, {MAX_STIFFNESS:g}] N/m",
-        g.max_stiffness,
-    )
-    _require(
-        finite(g.stability_margin) and 1 <= g.stability_margin <= 100,
-        "safety.stability_margin",
-        "in [1, 100]",
-        g.stability_margin,
-    )
-    _require(
-        finite(g.damping_ratio) and 0.2 <= g.damping_ratio <= 2,
-        "safety.damping_ratio",
-        "in [0.2, 2] (a first contact bounces below 0.19)",
-        g.damping_ratio,
-    )
-    if not g.enabled:
-        return
-    _require(
-        s.controller_kind == "optimal_admittance",
-        "safety.enabled",
-        "used with the paper's controller (controller.kind optimal_admittance, "
-        "admittance.enabled true)",
-        g.enabled,
-    )
-    _require(
-        finite(s.admittance.max_force),
-        "admittance.max_force",
-        "finite with safety.enabled (the layer keeps the force under it)",
-        s.admittance.max_force,
-    )
-    _require(
-        s.admittance.period == 0 and s.pid.period == 0,
-        "safety.enabled",
-        "used with the continuous controller (admittance.period and pid.period 0)",
-        g.enabled,
-    )
-
-
 # --- loading ----------------------------------------------------------------------------
 
 
 def builtin_scenario_names() -> list[str]:
     return sorted(p.stem for p in SCENARIO_DIR.glob("*.yaml"))
+
+
+def _kind_of(value) -> str:
+    if isinstance(value, list):
+        return "a list"
+    if isinstance(value, str):
+        return "a string"
+    return "a number" if isinstance(value, int | float) else type(value).__name__
+
+
+def _check_yaml_nodes(path: Path, text: str) -> None:
+    """Raises ScenarioError for a key given twice in one mapping (YAML keeps the last one,
+    silently) and for aliases (*name), which scenarios do not need."""
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError:
+        return  # yaml_load reports the syntax error with its line
+    visited = set()
+    nodes = [root] if root is not None else []
+    while nodes:
+        node = nodes.pop()
+        at = f"line {node.start_mark.line + 1}"
+        if id(node) in visited:
+            raise ScenarioError(
+                f"scenario: {path}: the value at {at} is repeated by an alias (*name); "
+                "scenario files take no YAML aliases: write the value out"
+            )
+        visited.add(id(node))
+        if isinstance(node, yaml.MappingNode):
+            seen = set()
+            for key, value in node.value:
+                if isinstance(key, yaml.ScalarNode):
+                    if key.value in seen:
+                        raise ScenarioError(
+                            f"scenario: {path} line {key.start_mark.line + 1}: key "
+                            f"{key.value!r} is given twice in the same mapping"
+                        )
+                    seen.add(key.value)
+                nodes += [key, value]
+        elif isinstance(node, yaml.SequenceNode):
+            nodes += node.value
+
+
+def _read_yaml(path: Path) -> dict:
+    """The mapping of scenario keys in the YAML file `path`, or one ScenarioError line."""
+    try:
+        status = path.stat()
+    except OSError as error:
+        raise ScenarioError(f"scenario: {path} cannot be read: {error.strerror}") from None
+    # A sweep loads the same file once per point: parse it once.
+    return copy.deepcopy(_parse_yaml(path, status.st_mtime_ns, status.st_size))
+
+
+@functools.lru_cache(maxsize=16)
+def _parse_yaml(path: Path, modified: int, size: int) -> dict:
+    try:
+        raw = path.read_bytes()
+    except OSError as error:
+        raise ScenarioError(f"scenario: {path} cannot be read: {error.strerror}") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise ScenarioError(
+            f"scenario: {path} is not UTF-8 text (byte 0x{raw[error.start]:02x} at offset "
+            f"{error.start})"
+        ) from None
+    _check_yaml_nodes(path, text)
+    try:
+        data = yaml_load(data=text) if text.strip() else None
+    except Exception as error:  # PyYAML's YAMLError (syntax) or pydrake's RuntimeError
+        where = getattr(error, "problem_mark", None)
+        at = f" at line {where.line + 1}, column {where.column + 1}" if where else ""
+        problem = getattr(error, "problem", None) or str(error).splitlines()[0]
+        raise ScenarioError(f"scenario: {path} is not valid YAML{at}: {problem}") from None
+    if data is None:
+        raise ScenarioError(
+            f"scenario: {path} holds no scenario keys; write the keys that differ from the "
+            "defaults, or {} for every default"
+        )
+    if not isinstance(data, dict):
+        raise ScenarioError(
+            f"scenario: {path} must hold a mapping of scenario keys, got {_kind_of(data)}"
+        )
+    return data
 
 
 def _read_source(source: str | Path | None) -> tuple[dict, str]:
@@ -767,17 +590,7 @@ def _read_source(source: str | Path | None) -> tuple[dict, str]:
         raise ScenarioError(
             f"scenario: '{source}' is neither a built-in scenario ({names}) nor a YAML file"
         )
-    try:
-        data = yaml_load(filename=str(path))
-    except Exception as error:  # PyYAML's YAMLError (syntax) or pydrake's RuntimeError
-        where = getattr(error, "problem_mark", None)
-        at = f" at line {where.line + 1}, column {where.column + 1}" if where else ""
-        problem = getattr(error, "problem", None) or str(error).splitlines()[0]
-        raise ScenarioError(f"scenario: {path} is not valid YAML{at}: {problem}") from None
-    if data is None:
-        data = {}
-    if not isinstance(data, dict):
-        raise ScenarioError(f"scenario: {path} must hold a mapping of scenario keys")
+    data = _read_yaml(path)
     data.setdefault("name", path.stem)
     arm = data.get("arm")
     if isinstance(arm, dict) and isinstance(arm.get("urdf"), str):
@@ -816,6 +629,8 @@ def load_scenario(
         _set_dotted(data, key, value)
     checked = _check_tree(data, Scenario)
     scenario = yaml_load_typed(schema=Scenario, data=_dump(checked))
+    from admittance.diagrams.scenario_validation import validate  # it imports this module
+
     return validate(scenario)
 
 

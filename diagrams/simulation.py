@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -13,6 +14,7 @@ from pydrake.systems.framework import EventStatus
 from admittance.diagrams.closed_loop import BuildClosedLoop, ClosedLoop, SetInitialConditions
 from admittance.diagrams.safety import (
     CapStepForSampledMonitor,
+    SafetyLayer,
     fault_detection,
     safety_columns,
     safety_metrics,
@@ -303,12 +305,17 @@ class SimulationDivergedError(RuntimeError):
         self.result = result
 
 
-def _divergence_monitor(loop: ClosedLoop, found: list):
-    """A Simulator monitor that stops at the first non-finite or runaway plant state."""
+def _divergence_monitor(
+    loop: ClosedLoop, found: list, progress: Callable[[float], None] | None = None
+):
+    """A Simulator monitor that stops at the first non-finite or runaway plant state, and
+    tells `progress` the simulated time after each step."""
     plant = loop.plant
     num_positions = plant.num_positions()
 
     def monitor(root_context):
+        if progress is not None:
+            progress(root_context.get_time())
         state = plant.GetPositionsAndVelocities(plant.GetMyContextFromRoot(root_context))
         if not np.all(np.isfinite(state)):
             found.append(f"the plant state is not finite at t = {root_context.get_time():.6g} s")
@@ -324,8 +331,16 @@ def _divergence_monitor(loop: ClosedLoop, found: list):
     return monitor
 
 
-def run_scenario(scenario: Scenario, *, loop: ClosedLoop | None = None) -> SimulationResult:
+def run_scenario(
+    scenario: Scenario,
+    *,
+    loop: ClosedLoop | None = None,
+    progress: Callable[[float], None] | None = None,
+) -> SimulationResult:
     """Builds (unless given), initializes and simulates `scenario`; returns its time series.
+
+    Args:
+        progress: called with the simulated time (s) after every integrator step.
 
     Raises:
         SimulationDivergedError: the run blew up; the exception carries the partial result.
@@ -338,9 +353,10 @@ def run_scenario(scenario: Scenario, *, loop: ClosedLoop | None = None) -> Simul
     context = simulator.get_mutable_context()
     SetInitialConditions(loop, context)
     divergence: list[str] = []
-    simulator.set_monitor(_divergence_monitor(loop, divergence))
+    simulator.set_monitor(_divergence_monitor(loop, divergence, progress))
     simulator.Initialize()
-    safety_numbers = loop.admittance.numbers(context) if "fault_flags" in loop.loggers else None
+    layer = loop.admittance if isinstance(loop.admittance, SafetyLayer) else None
+    safety_numbers = layer.numbers(context) if layer is not None else None
     start = time.perf_counter()
     try:
         simulator.AdvanceTo(scenario.duration)

@@ -35,13 +35,14 @@ from pydrake.systems.analysis import (
 from pydrake.systems.framework import DiagramBuilder, EventStatus, InputPortIndex
 from pydrake.systems.primitives import Linearize
 
-from admittance.diagrams.closed_loop import WALL_NORMAL_AXIS, AddPlanarArm, BuildClosedLoop
+from admittance.diagrams.closed_loop import WALL_NORMAL_AXIS, AddScenarioArm, BuildClosedLoop
 from admittance.diagrams.linearization import (
     FindContactEquilibrium,
     LinearizeAtEquilibrium,
     static_scenario,
 )
-from admittance.diagrams.scenario import Scenario, ScenarioError, scenario_keys, validate
+from admittance.diagrams.scenario import Scenario, ScenarioError, scenario_keys
+from admittance.diagrams.scenario_validation import validate
 from admittance.diagrams.simulation import SimulationResult
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
@@ -382,7 +383,7 @@ def lyapunov_along_trajectory(result: SimulationResult) -> dict:
     """
     scenario = result.scenario
     alpha = scenario.admittance.alpha
-    plant, _ = AddPlanarArm(DiagramBuilder(), scenario)
+    plant, _ = AddScenarioArm(DiagramBuilder(), scenario.arm)
     kinematics = PlanarFrameKinematics(plant, scenario.arm.fingertip_frame)
     tip_speed = np.empty(result.time.size)
     for row, (q, v) in enumerate(zip(result.joint_positions, result.joint_velocities, strict=True)):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from admittance.diagrams.closed_loop import AddPlanarArm
-from admittance.diagrams.scenario import Scenario
+from admittance.urdf import PLANAR_ARM_URDF
 
 
 @pytest.fixture(scope="session")
@@ -14,5 +14,5 @@ def arm_plant():
     from pydrake.systems.framework import DiagramBuilder
 
     builder = DiagramBuilder()
-    plant, _ = AddPlanarArm(builder, Scenario())
+    plant, _ = AddPlanarArm(builder, PLANAR_ARM_URDF)
     return plant

@@ -1,4 +1,4 @@
-"""The benchmark (diagrams/bench.py) on a short run: every field is there and sane.
+"""The benchmark (diagrams/app/bench.py) on a short run: every field is there and sane.
 
 No assertion on a wall time: only that times are positive and counts consistent.
 """
@@ -9,7 +9,7 @@ import json
 
 import pytest
 
-from admittance.diagrams.bench import format_benchmark, run_benchmark
+from admittance.diagrams.app.bench import format_benchmark, run_benchmark
 from admittance.diagrams.scenario import load_scenario
 
 

@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from admittance.diagrams.cli import main
+from admittance.diagrams.app.cli import main
 
 REQUIRED_COLUMNS = ["time", "x", "y", "theta", "xr", "force", "force_measured", "force_reference"]
 REQUIRED_METRICS = [
@@ -54,7 +54,7 @@ def test_simulate_writes_timeseries_metrics_and_figures(tmp_path, capsys):
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, arguments, key):
     out = tmp_path / "run"
     completed = subprocess.run(
-        [sys.executable, "-m", "admittance.diagrams.cli", *arguments, "--out", str(out)],
+        [sys.executable, "-m", "admittance.diagrams.app.cli", *arguments, "--out", str(out)],
         capture_output=True,
         text=True,
         timeout=120,

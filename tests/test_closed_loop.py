@@ -1,6 +1,6 @@
 """Closed-loop runs of the paper's scenarios: force tracking, signs, bounds.
 
-Tolerances are the acceptance criteria of the project (README, "What the runs show"): a
+Tolerances are the acceptance criteria of the project (docs/results.md, "What the runs show"): a
 mean force error under 1 % of Fr at steady state, a return to within 5 % of Fr in under 1 s
 after the stiffness doubles, no force above 2.2 Fr after first contact, no contact loss and
 +-20 % of Fr against the moving wall, and a PID-alone baseline above 10 Fr.

@@ -7,7 +7,7 @@ import json
 import pytest
 
 import admittance.diagrams.simulation as simulation
-from admittance.diagrams.cli import main
+from admittance.diagrams.app.cli import main
 from admittance.diagrams.scenario import ScenarioError, load_scenario
 from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
 

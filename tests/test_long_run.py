@@ -34,7 +34,7 @@ def test_five_minutes_of_noisy_contact_do_not_drift():
             "sensor.kind=flexiforce",
             "sensor.noise_std=0.02",
             f"logging.period={LOG_PERIOD}",
-            # Against 1e-4 this changes the force metrics of the 30 s run by < 0.5 % (README).
+            # Against 1e-4 this changes the 30 s run's force metrics by < 0.5 % (docs/speed.md).
             "simulator.accuracy=1e-3",
         ],
     )

@@ -9,8 +9,12 @@ import textwrap
 
 import pytest
 
-from admittance.diagrams.cli import main
-from admittance.diagrams.output import INCOMPLETE_MARK, OutputExistsError, atomic_output_dir
+from admittance.diagrams.app.cli import main
+from admittance.diagrams.app.result_folder import (
+    INCOMPLETE_MARK,
+    OutputExistsError,
+    atomic_output_dir,
+)
 
 
 def _previous_result(folder):
@@ -57,7 +61,7 @@ def test_a_killed_writer_leaves_the_previous_result_and_a_marked_staging_folder(
     script = textwrap.dedent(
         f"""
         import os, signal
-        from admittance.diagrams.output import atomic_output_dir
+        from admittance.diagrams.app.result_folder import atomic_output_dir
         with atomic_output_dir({str(out)!r}) as staging:
             (staging / "timeseries.csv").write_text("time,x\\n0,0.2\\n")
             os.kill(os.getpid(), signal.SIGKILL)
@@ -82,7 +86,7 @@ def test_a_killed_simulation_writes_nothing(tmp_path):
     command = [
         sys.executable,
         "-c",
-        "import sys; from admittance.diagrams.cli import main; sys.exit(main(sys.argv[1:]))",
+        "import sys; from admittance.diagrams.app.cli import main; sys.exit(main(sys.argv[1:]))",
         "simulate",
         "paper_moving_wall",
         "--set",

@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 
-from admittance.diagrams.cli import main
+from admittance.diagrams.app.cli import main
 from admittance.diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium
 from admittance.diagrams.scenario import load_scenario
 from admittance.diagrams.simulation import run_scenario
@@ -116,7 +116,7 @@ def test_lyapunov_function_along_the_moving_wall():
     assert 0.0 < trajectory["growing_fraction"] < 1.0
 
 
-def test_stability_command_writes_the_report(tmp_path):
+def test_stability_command_writes_the_report(tmp_path, capsys):
     out = tmp_path / "stability"
     status = main(
         [
@@ -139,3 +139,11 @@ def test_stability_command_writes_the_report(tmp_path):
     for name in ("stiffness", "alpha", "filter_cutoff", "period"):
         assert (out / f"map_gamma_vs_{name}.png").is_file()
     assert "P > 0" in (out / "report.txt").read_text()
+    # It says what it wrote, and only that: no V(t) figure without the trajectory.
+    captured = capsys.readouterr()
+    written = captured.out.strip().splitlines()[-1]
+    assert written.startswith(f"wrote {out}/: ")
+    assert sorted(written.split(": ", 1)[1].split(", ")) == sorted(p.name for p in out.iterdir())
+    assert "lyapunov_along_trajectory.png" not in written
+    # A progress line per stage on stderr, the four maps among them.
+    assert captured.err.count("admittance stability: stability map ") == 4

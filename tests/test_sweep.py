@@ -16,8 +16,8 @@ import time
 
 import pytest
 
-from admittance.diagrams.cli import main
-from admittance.diagrams.sweep import (
+from admittance.diagrams.app.cli import main
+from admittance.diagrams.app.sweep import (
     GRID_FORMS,
     RANDOM_FORMS,
     SweepError,
@@ -66,7 +66,7 @@ def _start_sweep(arguments: list[str]) -> subprocess.Popen:
     # background job without job control passes SIG_IGN on to its children).
     command = (
         "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
-        "from admittance.diagrams.cli import main; sys.exit(main(sys.argv[1:]))"
+        "from admittance.diagrams.app.cli import main; sys.exit(main(sys.argv[1:]))"
     )
     return subprocess.Popen(
         [sys.executable, "-c", command, *arguments],
@@ -75,6 +75,11 @@ def _start_sweep(arguments: list[str]) -> subprocess.Popen:
         text=True,
         start_new_session=True,
     )
+
+
+def _messages(stderr: str) -> list[str]:
+    """The lines of stderr that are not progress lines (``admittance sweep: ...``)."""
+    return [line for line in stderr.splitlines() if not line.startswith("admittance sweep: ")]
 
 
 def _wait_for_a_point(process: subprocess.Popen, points) -> None:
@@ -337,9 +342,9 @@ def test_resume_recomputes_only_the_missing_points(tmp_path, capsys):
     kept, lost, torn = lines
     (out / "points.jsonl").write_text(kept + torn[: len(torn) // 2])
     assert main(arguments) == 0
-    printed = capsys.readouterr().out
-    assert "ignored 1 unreadable line" in printed
-    assert "skipped 1 finished points of 3; 2 to run" in printed
+    progress = capsys.readouterr().err  # progress lines go to stderr
+    assert "ignored 1 unreadable line" in progress
+    assert "skipped 1 finished points of 3; 2 to run" in progress
     resumed = _lines(out)
     assert len(resumed) == 3 and resumed[0] == kept  # the finished point was not recomputed
     for line in resumed[1:]:
@@ -348,7 +353,7 @@ def test_resume_recomputes_only_the_missing_points(tmp_path, capsys):
     assert [int(r["index"]) for r in _table(out)] == [0, 1, 2]
     # Nothing left to run: the table is rebuilt from the record alone.
     assert main(arguments) == 0
-    assert "skipped 3 finished points of 3; 0 to run" in capsys.readouterr().out
+    assert "skipped 3 finished points of 3; 0 to run" in capsys.readouterr().err
     assert _lines(out) == resumed
 
 
@@ -362,7 +367,7 @@ def test_another_sweep_in_the_same_folder_needs_force(tmp_path, capsys):
     assert error.count("\n") == 0 and "--force" in error and "grid" in error
     assert json.loads(_lines(out)[0])["values"] == {"wall.stiffness": 2e4}
     assert main([*other, "--force"]) == 0
-    assert "resuming" not in capsys.readouterr().out
+    assert "resuming" not in capsys.readouterr().err
     assert [json.loads(line)["values"] for line in _lines(out)] == [{"wall.stiffness": 3e4}]
     # A folder that is not a sweep's is not written into.
     stranger = tmp_path / "results"
@@ -389,15 +394,15 @@ def test_a_killed_sweep_resumes_without_recomputing_finished_points(tmp_path, ca
     _, stderr = process.communicate(timeout=60)
     if how == "SIGINT":
         assert process.returncode == 130
-        assert "run the same command again to resume" in stderr and "Traceback" not in stderr
+        (message,) = _messages(stderr)
+        assert "run the same command again to resume" in message and "Traceback" not in stderr
     else:
         assert process.returncode == -signal.SIGKILL
     before = _lines(out)
     finished = [line for line in before if line.endswith("\n")]
     assert 1 <= len(finished) < 4
     assert main(arguments) == 0
-    printed = capsys.readouterr().out
-    assert f"skipped {len(finished)} finished points of 4" in printed
+    assert f"skipped {len(finished)} finished points of 4" in capsys.readouterr().err
     after = _lines(out)
     assert after[: len(finished)] == finished and len(after) == 4
     assert sorted(json.loads(line)["index"] for line in after) == [0, 1, 2, 3]
@@ -422,11 +427,11 @@ def test_a_dead_worker_stops_the_sweep_with_one_line_and_keeps_the_points(tmp_pa
     os.kill(workers[0], signal.SIGKILL)  # as the kernel's out-of-memory killer would
     _, stderr = process.communicate(timeout=60)
     assert process.returncode == 1
-    lines = stderr.strip().splitlines()
+    lines = _messages(stderr)
     assert len(lines) == 1 and "worker process died" in lines[0] and "resume" in lines[0]
     finished = _lines(out)
     assert main(arguments) == 0
-    assert f"skipped {len(finished)} finished points of 4" in capsys.readouterr().out
+    assert f"skipped {len(finished)} finished points of 4" in capsys.readouterr().err
     assert _lines(out)[: len(finished)] == finished and len(_lines(out)) == 4
 
 

@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
-import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
 
+from admittance.diagrams.app.formatting import number
+from admittance.diagrams.app.result_folder import ResultFolder, result_folder
 from admittance.diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium
-from admittance.diagrams.output import atomic_output_dir
 from admittance.diagrams.scenario import Scenario
 from admittance.diagrams.simulation import run_scenario
 from admittance.diagrams.stability import (
@@ -75,11 +76,24 @@ class StabilityReport:
     step: object
 
 
+def _silent(stage: str) -> None:
+    pass
+
+
 def analyse(
-    scenario: Scenario, *, axes: MapAxes | None = None, with_trajectory: bool = True
+    scenario: Scenario,
+    *,
+    axes: MapAxes | None = None,
+    with_trajectory: bool = True,
+    progress: Callable[[str], None] = _silent,
 ) -> StabilityReport:
-    """Everything `admittance stability` reports for `scenario`."""
+    """Everything `admittance stability` reports for `scenario`.
+
+    Args:
+        progress: called with a short description as each stage starts.
+    """
     axes = axes or MapAxes()
+    progress("eq. 13 symbolically; the contact equilibrium and the linearized loop")
     summary: dict = {"scenario": scenario.name, "eq13": symbolic_eq13()}
     equilibrium = FindContactEquilibrium(scenario)
     A = LinearizeAtEquilibrium(equilibrium).A()
@@ -90,6 +104,7 @@ def analyse(
     certificate.pop("P", None)
     summary["lyapunov"] = certificate
 
+    progress("a 0.1 N step of Fr, linear against nonlinear")
     step = linear_versus_nonlinear(scenario, step=0.1)
     summary["linear_versus_nonlinear"] = {
         "step_N": 0.1,
@@ -97,6 +112,7 @@ def analyse(
         "relative_to_step": float(np.max(np.abs(step.linear - step.nonlinear)) / 0.1),
     }
 
+    progress("the critical Gamma, and a simulation on either side of it")
     gamma_critical = critical_gamma(scenario)
     summary["critical_gamma"] = gamma_critical
     summary["gamma"] = scenario.admittance.gamma
@@ -108,12 +124,15 @@ def analyse(
         }
 
     maps = {}
-    for name, (key, axis, _, overrides) in MAPS.items():
+    for index, (name, (key, axis, _, overrides)) in enumerate(MAPS.items(), start=1):
+        size = len(axes.gamma) * len(getattr(axes, axis))
+        progress(f"stability map {index} of {len(MAPS)}: {name} ({size} linearizations)")
         base = with_values(scenario, overrides) if overrides else scenario
         maps[name] = stability_map(base, "admittance.gamma", axes.gamma, key, getattr(axes, axis))
 
     trajectory = None
     if with_trajectory:
+        progress(f"V(t) along a simulated run of {number(scenario.duration, ' s')}")
         result = run_scenario(scenario)
         trajectory = lyapunov_along_trajectory(result)
         summary["lyapunov_along_trajectory"] = {
@@ -140,27 +159,29 @@ def format_report(summary: dict) -> str:
         f"{summary['eq13']['printed_sign_grows']}",
         "",
         f"Linearized closed loop at the contact equilibrium ({summary['num_states']} states, "
-        f"residual {summary['equilibrium_residual']:.2g}):",
-        f"  stable: {modes['stable']} (max real part {modes['max_real_part']:.4g} 1/s)",
-        f"  slowest time constant {modes['slowest_time_constant']:.4g} s, fastest "
-        f"{modes['fastest_time_constant']:.3g} s, least damping ratio "
-        f"{modes['least_damped_ratio']:.3g}",
+        f"residual {number(summary['equilibrium_residual'], digits=2)}):",
+        f"  stable: {modes['stable']} (max real part "
+        f"{number(modes['max_real_part'], ' 1/s', digits=4)})",
+        f"  slowest time constant {number(modes['slowest_time_constant'], ' s', digits=4)}, "
+        f"fastest {number(modes['fastest_time_constant'], ' s')}, least damping ratio "
+        f"{number(modes['least_damped_ratio'])}",
         "  eigenvalues (1/s):",
     ]
     for (real, imag), zeta in zip(modes["eigenvalues"], modes["damping_ratios"], strict=True):
-        lines.append(f"    {real:14.6g} {imag:+14.6g} j   damping {zeta:.3g}")
+        lines.append(f"    {real:14.6g} {imag:+14.6g} j   damping {number(zeta)}")
     if lyapunov.get("positive_definite"):
         lines.append(
             "Lyapunov: A^T P + P A = -I has P > 0 (min eigenvalue "
-            f"{lyapunov['min_eigenvalue']:.3g}, condition number "
-            f"{lyapunov['condition_number']:.3g})"
+            f"{number(lyapunov['min_eigenvalue'])}, condition number "
+            f"{number(lyapunov['condition_number'])})"
         )
     else:
         lines.append(f"Lyapunov: no positive definite P ({lyapunov.get('error', 'P not > 0')})")
     comparison = summary["linear_versus_nonlinear"]
     lines.append(
         f"Linear vs nonlinear, Fr step of {comparison['step_N']} N: max difference "
-        f"{comparison['max_difference_N']:.3g} N ({100 * comparison['relative_to_step']:.3g} % "
+        f"{number(comparison['max_difference_N'], ' N')} "
+        f"({number(100 * comparison['relative_to_step'], ' %')} "
         "of the step)"
     )
     critical = summary["critical_gamma"]
@@ -169,8 +190,8 @@ def format_report(summary: dict) -> str:
     else:
         confirmation = summary["confirmation"]
         lines.append(
-            f"Critical Gamma {critical:.4g} ({summary['gamma_margin']:.3g} x the scenario's "
-            f"{summary['gamma']:.3g}); nonlinear check: at 0.8 x converges = "
+            f"Critical Gamma {number(critical, digits=4)} ({number(summary['gamma_margin'])} x the "
+            f"scenario's {number(summary['gamma'])}); nonlinear check: at 0.8 x converges = "
             f"{confirmation['below']['converges']}, at 1.25 x converges = "
             f"{confirmation['above']['converges']} (contact lost at "
             f"{confirmation['above']['contact_lost_time']} s)"
@@ -181,12 +202,12 @@ def format_report(summary: dict) -> str:
             f"V = 1/2 (E + alpha dE/dt)^2 along the run: monotone after contact = "
             f"{trajectory['monotone_after_contact']}; grows on "
             f"{trajectory['growing_intervals_total']} intervals, "
-            f"{100 * trajectory['growing_fraction']:.3g} % of the time"
+            f"{number(100 * trajectory['growing_fraction'], ' %')} of the time"
         )
     return "\n".join(lines) + "\n"
 
 
-def _plot_map(report: StabilityReport, name: str, path: Path) -> None:
+def _map_figure(report: StabilityReport, name: str):
     key, axis, label, _ = MAPS[name]
     grid = report.maps[name]
     y = getattr(report.axes, axis)
@@ -213,57 +234,65 @@ def _plot_map(report: StabilityReport, name: str, path: Path) -> None:
     ax.set_title(f"{name}\nmax Re(eig): blue stable, red unstable, black boundary", fontsize=10)
     ax.legend(loc="lower left")
     figure.colorbar(mesh, label="sign(s) log10(1 + |s| / 0.01), s = max Re(eig) (1/s)")
-    figure.tight_layout()
-    figure.savefig(path, dpi=100)
-    plt.close(figure)
+    return figure
 
 
-def write_report(report: StabilityReport, out_dir: str | Path, overwrite: bool = True) -> Path:
-    """Writes report.json, report.txt and the figures atomically into `out_dir`."""
-    with atomic_output_dir(out_dir, overwrite=overwrite) as staging:
-        data = dict(report.summary)
-        data["maps"] = {
-            name: {
-                "gamma": report.axes.gamma.tolist(),
-                MAPS[name][0]: getattr(report.axes, MAPS[name][1]).tolist(),
-                "max_real_part": [[None if math.isnan(v) else v for v in row] for row in grid],
-            }
-            for name, grid in report.maps.items()
+def _eigenvalue_figure(report: StabilityReport):
+    eigenvalues = np.array(report.summary["modes"]["eigenvalues"])
+    figure, ax = plt.subplots(figsize=(6, 4))
+    ax.scatter(eigenvalues[:, 0], eigenvalues[:, 1], marker="x")
+    ax.set_xscale("symlog", linthresh=1.0)
+    ax.set_xlabel("Re (1/s)")
+    ax.set_ylabel("Im (rad/s)")
+    ax.set_title("closed-loop eigenvalues at the contact equilibrium")
+    ax.grid(True, alpha=0.3)
+    return figure
+
+
+def _step_figure(report: StabilityReport):
+    figure, ax = plt.subplots(figsize=(7, 4))
+    ax.plot(report.step.time, report.step.nonlinear, label="nonlinear diagram")
+    ax.plot(report.step.time, report.step.linear, "--", label="Linearize")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("contact force change (N)")
+    ax.set_title("response to a 0.1 N step of Fr")
+    ax.legend()
+    ax.grid(True, alpha=0.3)
+    return figure
+
+
+def _lyapunov_figure(trajectory: dict):
+    figure, ax = plt.subplots(figsize=(7, 4))
+    ax.semilogy(trajectory["time"], trajectory["V"] + 1e-12)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("V = 1/2 (E + alpha dE/dt)^2 (N^2)")
+    ax.set_title("the paper's Lyapunov function along the run")
+    ax.grid(True, alpha=0.3)
+    return figure
+
+
+def write_report(
+    report: StabilityReport, out_dir: str | Path, overwrite: bool = True
+) -> ResultFolder:
+    """Writes report.json, report.txt and the figures atomically; returns what it wrote."""
+    data = dict(report.summary)
+    data["maps"] = {
+        name: {
+            "gamma": report.axes.gamma.tolist(),
+            MAPS[name][0]: getattr(report.axes, MAPS[name][1]).tolist(),
+            "max_real_part": [[None if math.isnan(v) else v for v in row] for row in grid],
         }
-        (staging / "report.json").write_text(json.dumps(data, indent=2, default=float) + "\n")
-        (staging / "report.txt").write_text(format_report(report.summary))
+        for name, grid in report.maps.items()
+    }
+    with result_folder(out_dir, overwrite=overwrite) as folder:
+        folder.write_json("report.json", data)
+        folder.write_text("report.txt", format_report(report.summary))
         for name in report.maps:
-            _plot_map(report, name, staging / f"map_{name}.png")
-        eigenvalues = np.array(report.summary["modes"]["eigenvalues"])
-        figure, ax = plt.subplots(figsize=(6, 4))
-        ax.scatter(eigenvalues[:, 0], eigenvalues[:, 1], marker="x")
-        ax.set_xscale("symlog", linthresh=1.0)
-        ax.set_xlabel("Re (1/s)")
-        ax.set_ylabel("Im (rad/s)")
-        ax.set_title("closed-loop eigenvalues at the contact equilibrium")
-        ax.grid(True, alpha=0.3)
-        figure.tight_layout()
-        figure.savefig(staging / "eigenvalues.png", dpi=100)
-        plt.close(figure)
-        figure, ax = plt.subplots(figsize=(7, 4))
-        ax.plot(report.step.time, report.step.nonlinear, label="nonlinear diagram")
-        ax.plot(report.step.time, report.step.linear, "--", label="Linearize")
-        ax.set_xlabel("time (s)")
-        ax.set_ylabel("contact force change (N)")
-        ax.set_title("response to a 0.1 N step of Fr")
-        ax.legend()
-        ax.grid(True, alpha=0.3)
-        figure.tight_layout()
-        figure.savefig(staging / "step_linear_vs_nonlinear.png", dpi=100)
-        plt.close(figure)
+            folder.write_figure(f"map_{name}.png", _map_figure(report, name), dpi=100)
+        folder.write_figure("eigenvalues.png", _eigenvalue_figure(report), dpi=100)
+        folder.write_figure("step_linear_vs_nonlinear.png", _step_figure(report), dpi=100)
         if report.trajectory is not None:
-            figure, ax = plt.subplots(figsize=(7, 4))
-            ax.semilogy(report.trajectory["time"], report.trajectory["V"] + 1e-12)
-            ax.set_xlabel("time (s)")
-            ax.set_ylabel("V = 1/2 (E + alpha dE/dt)^2 (N^2)")
-            ax.set_title("the paper's Lyapunov function along the run")
-            ax.grid(True, alpha=0.3)
-            figure.tight_layout()
-            figure.savefig(staging / "lyapunov_along_trajectory.png", dpi=100)
-            plt.close(figure)
-    return Path(out_dir)
+            folder.write_figure(
+                "lyapunov_along_trajectory.png", _lyapunov_figure(report.trajectory), dpi=100
+            )
+    return folder

@@ -1,8 +1,10 @@
 """Every force controller on the same scenario, side by side (``admittance compare``).
 
 Each controller of ``CONTROLLER_KINDS`` runs the scenario with only ``controller.kind``
-changed (baselines tuned by the matched rule of diagrams/force_controllers.py), in parallel
-on the local cores. The result folder (written atomically) holds:
+changed (baselines tuned by the matched rule of diagrams/force_controllers.py): a one-axis
+study over ``controller.kind``, defined and validated as a sweep's points and run in
+parallel by the sweep's runner (diagrams/app/sweep/runner.py: its worker processes and
+Ctrl-C handling). The result folder (written atomically) holds:
 
 * ``table.txt`` and ``table.csv``: one row per controller: peak force, peak after the first
   contact transient, settling time (5 %) after each event, RMS and steady-state force error,
@@ -21,17 +23,24 @@ Verdicts, on the mean force over the last second (``final_mean_force`` of the me
 
 from __future__ import annotations
 
-import concurrent.futures
-import json
+import csv
 import math
-import multiprocessing
-import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from admittance.diagrams.output import atomic_output_dir, json_safe
+from admittance.diagrams.app.formatting import number, seconds
+from admittance.diagrams.app.result_folder import ResultFolder, result_folder
+from admittance.diagrams.app.sweep.definition import define_sweep
+from admittance.diagrams.app.sweep.runner import (
+    check_workers,
+    run_tasks,
+    sigterm_interrupts,
+    simulate_point,
+)
+from admittance.diagrams.closed_loop import CheckScenarioStarts
 from admittance.diagrams.scenario import CONTROLLER_KINDS, Scenario, load_scenario, scenario_to_yaml
 from admittance.diagrams.simulation import SETTLE_BAND, settling_columns
 
@@ -48,6 +57,8 @@ class ControllerRun:
     time: np.ndarray | None = None
     force: np.ndarray | None = None
     reference_offset: np.ndarray | None = None
+    # Build, run and metrics, s.
+    point_time: float = 0.0
 
 
 def _verdict(metrics: dict, force_reference: float) -> str:
@@ -86,26 +97,27 @@ def _scaled(value, factor):
     return None if value is None else value * factor
 
 
-def _run_one(source, overrides: list[str], kind: str) -> ControllerRun:
-    """Runs one controller (in a worker process); never raises for a failed run."""
-    from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
-
-    scenario = load_scenario(source, [*overrides, f"controller.kind={kind}"])
-    try:
-        result = run_scenario(scenario)
-    except SimulationDivergedError as diverged:
-        result = diverged.result
-    except RuntimeError as error:  # a failure inside Drake that is not a divergence
-        metrics = {"failed": True, "failure": str(error).splitlines()[0]}
-        return ControllerRun(kind, _row(kind, metrics, scenario.force_reference), metrics)
-    return ControllerRun(
-        kind,
-        _row(kind, result.metrics, scenario.force_reference),
-        result.metrics,
-        result.time,
-        result.force,
-        result.reference_offset[:, 0],
+def _run_controller(task: dict) -> ControllerRun:
+    """Runs one controller (in a worker process); a failed run is a row, not an exception."""
+    kind = task["kind"]
+    run = simulate_point(
+        task["scenario"], [*task["overrides"], f"controller.kind={kind}"], keep_series=True
     )
+    metrics = dict(run.metrics)
+    if run.failed:
+        metrics.update(failed=True, failure=run.failure)
+    force_reference = run.force_reference if run.force_reference is not None else math.nan
+    controller_run = ControllerRun(kind, _row(kind, metrics, force_reference), metrics)
+    if run.series is not None:
+        controller_run.time = run.series["time"]
+        controller_run.force = run.series["force"]
+        controller_run.reference_offset = run.series["reference_offset"]
+    controller_run.point_time = run.point_time
+    return controller_run
+
+
+def _silent(line: str) -> None:
+    pass
 
 
 def compare_controllers(
@@ -113,32 +125,55 @@ def compare_controllers(
     overrides: list[str] = (),
     kinds: list[str] = CONTROLLER_KINDS,
     workers: int | None = None,
+    progress: Callable[[str], None] = _silent,
 ) -> tuple[Scenario, list[ControllerRun]]:
     """Runs `kinds` on the scenario `source` with `overrides`, in parallel processes.
 
-    Every (scenario, kind) pair is validated first, so a bad key fails before any run.
+    A one-axis study over ``controller.kind``: the points are defined and validated as a
+    sweep's (so a bad key fails before any run) and run by the sweep's runner (its worker
+    pool and Ctrl-C handling).
+
+    Args:
+        progress: called with one line as the runs start and as each one finishes.
 
     Returns:
         (the scenario as loaded, with the optimal admittance), the runs in `kinds` order.
+
+    Raises:
+        ScenarioError: a bad key or value, a scenario that cannot start, bad `workers`.
+        KeyboardInterrupt: Ctrl-C or SIGTERM, after the workers were stopped.
     """
     overrides = list(overrides)
+    workers = check_workers(workers)
     scenario = load_scenario(source, overrides)
-    for kind in kinds:
-        load_scenario(source, [*overrides, f"controller.kind={kind}"])
-    workers = max(1, min(len(kinds), workers or os.cpu_count() or 1))
-    context = multiprocessing.get_context("spawn")
-    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
-        futures = [pool.submit(_run_one, source, overrides, kind) for kind in kinds]
-        runs = [future.result() for future in futures]
-    return scenario, runs
+    study = define_sweep(source, overrides, grid=[f"controller.kind={','.join(kinds)}"])
+    CheckScenarioStarts(scenario)  # once, before five workers find out each on its own
+    tasks = [
+        {
+            "kind": point.values["controller.kind"],
+            "scenario": study.scenario_source,
+            "overrides": overrides,
+        }
+        for point in study.points
+    ]
+    workers = min(workers, len(tasks))
+    progress(f"running {len(tasks)} controllers ({workers} worker{'s' if workers > 1 else ''})")
+    runs: dict[str, ControllerRun] = {}
+
+    def on_run(run: ControllerRun) -> None:
+        runs[run.kind] = run
+        progress(
+            f"[{len(runs)}/{len(tasks)}] {run.kind} in {seconds(run.point_time)}: "
+            f"{run.row['verdict']}" + (f" ({run.row['failure']})" if run.row["failure"] else "")
+        )
+
+    with sigterm_interrupts():
+        run_tasks(_run_controller, tasks, on_run, workers=workers, key=lambda task: task["kind"])
+    return scenario, [runs[task["kind"]] for task in tasks]
 
 
-def _format(value) -> str:
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return "-"
-    if isinstance(value, float):
-        return f"{value:.3g}"
-    return str(value)
+def _cell(value) -> str:
+    return value if isinstance(value, str) else number(value, missing="-")
 
 
 def format_table(runs: list[ControllerRun]) -> str:
@@ -146,7 +181,7 @@ def format_table(runs: list[ControllerRun]) -> str:
     columns = []
     for run in runs:
         columns += [key for key in run.row if key not in columns and key != "failure"]
-    cells = [columns] + [[_format(run.row.get(key)) for key in columns] for run in runs]
+    cells = [columns] + [[_cell(run.row.get(key)) for key in columns] for run in runs]
     widths = [max(len(row[i]) for row in cells) for i in range(len(columns))]
     lines = [
         "  ".join(cell.rjust(width) for cell, width in zip(row, widths, strict=True))
@@ -159,8 +194,6 @@ def format_table(runs: list[ControllerRun]) -> str:
 
 
 def _write_csv(runs: list[ControllerRun], path: Path) -> None:
-    import csv
-
     columns = []
     for run in runs:
         columns += [key for key in run.row if key not in columns]
@@ -197,25 +230,19 @@ def plot_comparison(scenario: Scenario, runs: list[ControllerRun], axes=None):
 
 def write_comparison(
     scenario: Scenario, runs: list[ControllerRun], out_dir: str | Path, overwrite: bool
-) -> Path:
-    """Writes table.txt, table.csv, metrics.json, force.png and scenario.yaml atomically."""
-    import matplotlib.pyplot as plt
-
+) -> ResultFolder:
+    """Writes table.txt, table.csv, metrics.json, scenario.yaml and force.png atomically."""
     from admittance.diagrams.force_controllers import baseline_gains
 
-    with atomic_output_dir(out_dir, overwrite=overwrite) as staging:
-        (staging / "table.txt").write_text(format_table(runs))
-        _write_csv(runs, staging / "table.csv")
-        report = {
-            "scenario": scenario.name,
-            "baseline_gains": baseline_gains(scenario),
-            "controllers": {run.kind: run.metrics for run in runs},
-        }
-        (staging / "metrics.json").write_text(json.dumps(json_safe(report), indent=2) + "\n")
-        (staging / "scenario.yaml").write_text(scenario_to_yaml(scenario))
-        axes = plot_comparison(scenario, runs)
-        figure = axes[0].figure
-        figure.tight_layout()
-        figure.savefig(staging / "force.png", dpi=110)
-        plt.close(figure)
-    return Path(out_dir)
+    report = {
+        "scenario": scenario.name,
+        "baseline_gains": baseline_gains(scenario),
+        "controllers": {run.kind: run.metrics for run in runs},
+    }
+    with result_folder(out_dir, overwrite=overwrite) as folder:
+        folder.write_text("table.txt", format_table(runs))
+        folder.write_with("table.csv", lambda path: _write_csv(runs, path))
+        folder.write_json("metrics.json", report)
+        folder.write_text("scenario.yaml", scenario_to_yaml(scenario))
+        folder.write_figure("force.png", plot_comparison(scenario, runs)[0].figure)
+    return folder

@@ -6,10 +6,15 @@ written is the mark removed and the folder renamed into place (``os.replace``, a
 one file system). So a run killed at any moment leaves the previous complete result (or
 none) under ``<name>``, and at most a hidden staging folder that says it is incomplete; the
 next run into the same place removes staging folders whose process is gone.
+
+Each command writes its folder through :func:`result_folder`, whose :class:`ResultFolder`
+keeps the names of the files written, so that the command prints what it wrote and
+nothing else.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import shutil
@@ -21,24 +26,60 @@ from pathlib import Path
 
 import numpy as np
 
+from admittance.diagrams.app.interrupts import sigint_held_back
+
 __all__ = [
     "OutputExistsError",
+    "OutputPathError",
+    "ResultFolder",
     "atomic_output_dir",
     "atomic_write",
     "atomic_write_text",
     "check_output_dir",
+    "check_writable",
     "json_safe",
+    "result_folder",
 ]
 
 INCOMPLETE_MARK = "INCOMPLETE"
+
+# The folders this process has moved into place, in order (an interrupted command names
+# those it completed).
+completed_folders: list[Path] = []
 
 
 class OutputExistsError(FileExistsError):
     """The result folder exists and overwriting was not asked for."""
 
 
+class OutputPathError(ValueError):
+    """An output path that cannot be written (no such place, no permission, the current
+    folder itself)."""
+
+
+def check_writable(path: str | Path, flag: str = "--out") -> None:
+    """Raises OutputPathError unless `path` can be created: its nearest existing folder
+    takes a new entry (tried by creating and removing an empty folder there).
+
+    Called before a run, so that a long simulation is not wasted on a refused write.
+    """
+    path = Path(path)
+    place = path.absolute().parent
+    while not place.exists() and place != place.parent:
+        place = place.parent
+    if not place.is_dir():
+        raise OutputPathError(f"{flag} {path}: {place} is not a folder")
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".admittance-probe.", dir=place))
+    except OSError as error:
+        raise OutputPathError(
+            f"{flag} {path}: cannot write into {place}: {error.strerror}"
+        ) from None
+
+
 def check_output_dir(out_dir: str | Path, overwrite: bool) -> None:
-    """Raises OutputExistsError if `out_dir` holds something and `overwrite` is False.
+    """Raises OutputExistsError if `out_dir` holds something and `overwrite` is False, and
+    OutputPathError if it cannot be written or would replace the current folder.
 
     Called before a run, so that a long simulation is not wasted on a refused write.
     """
@@ -49,6 +90,12 @@ def check_output_dir(out_dir: str | Path, overwrite: bool) -> None:
         )
     if out_dir.exists() and not out_dir.is_dir():
         raise OutputExistsError(f"--out {out_dir}: exists and is not a folder")
+    here = Path.cwd().resolve()
+    if out_dir.exists() and (out_dir.resolve() == here or out_dir.resolve() in here.parents):
+        raise OutputPathError(
+            f"--out {out_dir}: is the current folder or holds it; choose a folder of its own"
+        )
+    check_writable(out_dir)
 
 
 def _process_alive(pid: int) -> bool:
@@ -92,17 +139,60 @@ def atomic_output_dir(out_dir: str | Path, overwrite: bool = True) -> Iterator[P
     )
     try:
         yield staging
-        mark.unlink()
-        if out_dir.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old.", dir=out_dir.parent))
-            os.replace(out_dir, old / out_dir.name)
-            os.replace(staging, out_dir)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(staging, out_dir)
+        # Ctrl-C waits until the folder is in place and recorded, so that an interrupted
+        # command knows whether its result was written.
+        with sigint_held_back():
+            mark.unlink()
+            if out_dir.exists():
+                old = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.old.", dir=out_dir.parent))
+                os.replace(out_dir, old / out_dir.name)
+                os.replace(staging, out_dir)
+                shutil.rmtree(old, ignore_errors=True)
+            else:
+                os.replace(staging, out_dir)
+            completed_folders.append(out_dir)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
+
+
+class ResultFolder:
+    """The staging folder of a result being written, and the names of the files written."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.names: list[str] = []
+
+    def write_with(self, name: str, write: Callable[[Path], None]) -> None:
+        """`write(path)` writes the file `name`."""
+        write(self.path / name)
+        self.names.append(name)
+
+    def write_text(self, name: str, text: str) -> None:
+        self.write_with(name, lambda path: path.write_text(text))
+
+    def write_json(self, name: str, data) -> None:
+        """`data` as indented JSON, numpy scalars as numbers and non-finite floats as null."""
+        self.write_text(name, json.dumps(json_safe(data), indent=2) + "\n")
+
+    def write_figure(self, name: str, figure, dpi: int = 110) -> None:
+        """Saves a matplotlib figure as `name` (PNG) and closes it."""
+        import matplotlib.pyplot as plt
+
+        figure.tight_layout()
+        self.write_with(name, lambda path: figure.savefig(path, dpi=dpi))
+        plt.close(figure)
+
+    def describe(self, out_dir: str | Path) -> str:
+        """``wrote DIR/: name, name, ...`` for the terminal."""
+        return f"wrote {out_dir}/: {', '.join(self.names)}"
+
+
+@contextmanager
+def result_folder(out_dir: str | Path, overwrite: bool = True) -> Iterator[ResultFolder]:
+    """:func:`atomic_output_dir` with a :class:`ResultFolder` to write into."""
+    with atomic_output_dir(out_dir, overwrite=overwrite) as staging:
+        yield ResultFolder(staging)
 
 
 def json_safe(value):

@@ -44,7 +44,8 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from admittance.diagrams.closed_loop import AddPlanarArm, BuildClosedLoop, SetInitialConditions
+from admittance.diagrams.app.formatting import number, seconds
+from admittance.diagrams.closed_loop import AddScenarioArm, BuildClosedLoop, SetInitialConditions
 from admittance.diagrams.scenario import LoggingConfig, Scenario
 from admittance.diagrams.simulation import run_scenario
 
@@ -226,7 +227,7 @@ def _initial_positions(scenario: Scenario) -> np.ndarray:
 def _build_floor(scenario: Scenario, positions: np.ndarray):
     """The bare arm held at `positions` by constant torques equal to gravity's."""
     builder = DiagramBuilder()
-    plant, _ = AddPlanarArm(builder, scenario)
+    plant, _ = AddScenarioArm(builder, scenario.arm)
     plant_context = plant.CreateDefaultContext()
     plant.SetPositions(plant_context, positions)
     gravity = plant.CalcGravityGeneralizedForces(plant_context)
@@ -280,12 +281,19 @@ def _per(numerator: float, denominator: float) -> float | None:
     return numerator / denominator if denominator else None
 
 
-def run_benchmark(scenario: Scenario, repeat: int = 3) -> dict:
+def _silent(stage: str) -> None:
+    pass
+
+
+def run_benchmark(
+    scenario: Scenario, repeat: int = 3, progress: Callable[[str], None] = _silent
+) -> dict:
     """Times `scenario` and its floor, and reports where the time goes.
 
     Args:
         scenario: a validated scenario (``load_scenario``).
         repeat: number of timed runs after the warm-up (>= 1).
+        progress: called with a short description as each run starts.
 
     Returns:
         A JSON-serialisable dict (see ``format_benchmark`` for its reading): ``scenario``,
@@ -306,6 +314,7 @@ def run_benchmark(scenario: Scenario, repeat: int = 3) -> dict:
     if not tracing:
         tracemalloc.start()
     tracemalloc.reset_peak()
+    progress("warm-up run (not timed)")
     try:
         warm_up = run_scenario(scenario)
         _, python_peak = tracemalloc.get_traced_memory()
@@ -316,7 +325,8 @@ def run_benchmark(scenario: Scenario, repeat: int = 3) -> dict:
     # Timed runs: AdvanceTo alone.
     build_times = []
     runs = []
-    for _ in range(repeat):
+    for number_of_run in range(1, repeat + 1):
+        progress(f"timed run {number_of_run} of {repeat}")
         start = time.perf_counter()
         loop = BuildClosedLoop(scenario)
         build_times.append(time.perf_counter() - start)
@@ -332,16 +342,17 @@ def run_benchmark(scenario: Scenario, repeat: int = 3) -> dict:
     timed = runs[0]
 
     # Python callbacks, in a separate run.
+    progress("profiling run (every Python callback counted and timed)")
     profiled, profiler, names = _profile_callbacks(scenario)
     callbacks = []
-    for (system_id, method), (calls, seconds) in profiler.entries.items():
+    for (system_id, method), (calls, time_inside) in profiler.entries.items():
         callbacks.append(
             {
                 "name": f"{names.get(system_id, '?')}.{method}",
                 "calls": calls,
                 "per_derivative_evaluation": _per(calls, profiled.derivative_evaluations),
-                "time": seconds,
-                "mean_us": 1e6 * seconds / calls,
+                "time": time_inside,
+                "mean_us": 1e6 * time_inside / calls,
             }
         )
     callbacks.sort(key=lambda entry: entry["time"], reverse=True)
@@ -349,6 +360,7 @@ def run_benchmark(scenario: Scenario, repeat: int = 3) -> dict:
     python_fraction = _per(profiler.top_level_time, profiled.wall_time)
 
     # The floor: the bare plant, same duration and SimulatorConfig.
+    progress(f"the floor: the bare arm, {repeat + 1} run(s)")
     positions = _initial_positions(scenario)
     _advance_floor(scenario, positions)  # warm-up
     floor_runs = [_advance_floor(scenario, positions) for _ in range(repeat)]
@@ -358,6 +370,7 @@ def run_benchmark(scenario: Scenario, repeat: int = 3) -> dict:
     per_evaluation = _per(median, timed.derivative_evaluations)
 
     # Logging cost: one run with the other logging setting.
+    progress("one run with the other logging setting")
     if scenario.logging.period == 0.0:
         # Loggers that publish once, at t = 0: the cost of the loop without logging.
         variant, variant_period = "none", 2.0 * scenario.duration + 1.0
@@ -366,7 +379,7 @@ def run_benchmark(scenario: Scenario, repeat: int = 3) -> dict:
     variant_run = _advance_closed_loop(
         dataclasses.replace(scenario, logging=LoggingConfig(period=variant_period))
     )
-    current = "every step" if scenario.logging.period == 0.0 else f"{scenario.logging.period:g} s"
+    current = "every step" if scenario.logging.period == 0.0 else seconds(scenario.logging.period)
     logging = [
         {"logging": current, "wall_time": median, "integrator_steps": timed.steps},
         {
@@ -452,26 +465,8 @@ def run_benchmark(scenario: Scenario, repeat: int = 3) -> dict:
 # --- the table --------------------------------------------------------------------------
 
 
-def _seconds(value: float | None) -> str:
-    if value is None:
-        return "-"
-    if value >= 100:
-        return f"{value:.0f} s"
-    if value >= 1:
-        return f"{value:.2f} s"
-    if value >= 1e-3:
-        return f"{1e3 * value:.1f} ms"
-    if value >= 1e-6:
-        return f"{1e6 * value:.0f} us"
-    return f"{value:.2g} s"
-
-
-def _number(value: float | None, digits: int = 3) -> str:
-    if value is None:
-        return "-"
-    if isinstance(value, int):
-        return f"{value:,}"
-    return f"{value:.{digits}g}"
+def _signed_percent(fraction: float) -> str:
+    return ("+" if fraction >= 0 else "") + number(100 * fraction, " %", digits=2)
 
 
 def format_benchmark(report: dict) -> str:
@@ -483,9 +478,9 @@ def format_benchmark(report: dict) -> str:
     integrator = loop["integrator"]
     memory = report["memory"]
     lines = [
-        f"Benchmark of {scenario['name']}: {scenario['duration']:g} s simulated, sensor "
+        f"Benchmark of {scenario['name']}: {number(scenario['duration'], ' s')} simulated, sensor "
         f"{scenario['sensor']}, {scenario['integration_scheme']} accuracy "
-        f"{scenario['accuracy']:g}, max step {scenario['max_step_size']:g} s, "
+        f"{number(scenario['accuracy'])}, max step {number(scenario['max_step_size'], ' s')}, "
         f"{report['repeat']} timed run(s) after a warm-up",
         "",
         f"{'':34}{'closed loop':>22}{'floor (bare arm)':>22}",
@@ -496,90 +491,94 @@ def format_benchmark(report: dict) -> str:
 
     row(
         "AdvanceTo wall time, median",
-        _seconds(loop["wall_time"]["median"]),
-        _seconds(floor["wall_time"]["median"]),
+        seconds(loop["wall_time"]["median"]),
+        seconds(floor["wall_time"]["median"]),
     )
     row(
         "  min / max",
-        f"{_seconds(loop['wall_time']['min'])} / {_seconds(loop['wall_time']['max'])}",
-        f"{_seconds(floor['wall_time']['min'])} / {_seconds(floor['wall_time']['max'])}",
+        f"{seconds(loop['wall_time']['min'])} / {seconds(loop['wall_time']['max'])}",
+        f"{seconds(floor['wall_time']['min'])} / {seconds(floor['wall_time']['max'])}",
     )
     row(
         "real-time factor",
-        _number(loop["real_time_factor"]),
-        _number(floor["real_time_factor"]),
+        number(loop["real_time_factor"]),
+        number(floor["real_time_factor"]),
     )
-    row("integrator steps", _number(loop["integrator_steps"]), _number(floor["integrator_steps"]))
+    row("integrator steps", number(loop["integrator_steps"]), number(floor["integrator_steps"]))
     row(
         "derivative evaluations",
-        _number(loop["derivative_evaluations"]),
-        _number(floor["derivative_evaluations"]),
+        number(loop["derivative_evaluations"]),
+        number(floor["derivative_evaluations"]),
     )
-    row("  per step", _number(loop["derivative_evaluations_per_step"]))
+    row("  per step", number(loop["derivative_evaluations_per_step"]))
     row(
         "wall time per step",
-        _seconds(1e-6 * loop["wall_time_per_step_us"]),
-        _seconds(1e-6 * floor["wall_time_per_step_us"]),
+        seconds(1e-6 * loop["wall_time_per_step_us"]),
+        seconds(1e-6 * floor["wall_time_per_step_us"]),
     )
     floor_per_evaluation = floor["wall_time_per_derivative_evaluation_us"]
     row(
         "wall time per derivative eval.",
-        _seconds(1e-6 * loop["wall_time_per_derivative_evaluation_us"]),
-        _seconds(1e-6 * floor_per_evaluation) if floor_per_evaluation is not None else "-",
+        seconds(1e-6 * loop["wall_time_per_derivative_evaluation_us"]),
+        seconds(1e-6 * floor_per_evaluation) if floor_per_evaluation is not None else seconds(None),
     )
-    row("build time (excluded)", _seconds(loop["build_time"]))
+    row("build time (excluded)", seconds(loop["build_time"]))
     lines += [
         "",
-        f"closed loop / floor: {_number(report['ratio_to_floor'])} x in wall time, "
-        f"{_number(report['per_evaluation_ratio_to_floor'])} x per derivative evaluation "
-        f"(floor drift {floor['max_joint_drift']:.1g} rad)",
-        f"integrator: {_number(integrator.get('num_newton_raphson_iterations'))} Newton "
-        f"iterations, {_number(integrator.get('num_jacobian_evaluations'))} Jacobians "
-        f"({_number(integrator.get('num_derivative_evaluations_for_jacobian'))} derivative "
-        f"evaluations), {_number(integrator.get('num_iteration_matrix_factorizations'))} "
+        f"closed loop / floor: {number(report['ratio_to_floor'])} x in wall time, "
+        f"{number(report['per_evaluation_ratio_to_floor'])} x per derivative evaluation "
+        f"(floor drift {number(floor['max_joint_drift'], ' rad', digits=1)})",
+        f"integrator: {number(integrator.get('num_newton_raphson_iterations'))} Newton "
+        f"iterations, {number(integrator.get('num_jacobian_evaluations'))} Jacobians "
+        f"({number(integrator.get('num_derivative_evaluations_for_jacobian'))} derivative "
+        f"evaluations), {number(integrator.get('num_iteration_matrix_factorizations'))} "
         f"factorizations, step shrinkages "
-        f"{_number(integrator.get('num_step_shrinkages_from_error_control'))} (error control) + "
-        f"{_number(integrator.get('num_step_shrinkages_from_substep_failures'))} "
+        f"{number(integrator.get('num_step_shrinkages_from_error_control'))} (error control) + "
+        f"{number(integrator.get('num_step_shrinkages_from_substep_failures'))} "
         f"(substep failures), smallest step "
-        f"{_seconds(integrator.get('smallest_adapted_step_size_taken'))}",
+        f"{seconds(integrator.get('smallest_adapted_step_size_taken'))}",
     ]
     if not loop["deterministic"]:
         lines.append("warning: the runs did not take the same steps (non-deterministic loop)")
     fraction = python["fraction_of_wall_time"]
     lines += [
         "",
-        f"Python callbacks (separate profiling run, {_seconds(python['profiled_wall_time'])}): "
-        f"{_number(python['callback_calls'])} calls, "
-        f"{_number(python['callbacks_per_derivative_evaluation'])} per derivative evaluation; "
-        f"{_seconds(python['time_in_callbacks'])} inside them"
-        + (f" = {100 * fraction:.0f} % of the run" if fraction is not None else ""),
+        f"Python callbacks (separate profiling run, {seconds(python['profiled_wall_time'])}): "
+        f"{number(python['callback_calls'])} calls, "
+        f"{number(python['callbacks_per_derivative_evaluation'])} per derivative evaluation; "
+        f"{seconds(python['time_in_callbacks'])} inside them"
+        + (
+            f" = {number(100 * fraction, ' %', digits=2)} of the run"
+            if fraction is not None
+            else ""
+        ),
         f"  {'callback':46}{'calls':>10}{'per eval':>10}{'time':>10}{'mean':>10}",
     ]
     for entry in python["callbacks"]:
         lines.append(
-            f"  {entry['name']:46}{entry['calls']:>10,}"
-            f"{_number(entry['per_derivative_evaluation']):>10}"
-            f"{_seconds(entry['time']):>10}{_seconds(1e-6 * entry['mean_us']):>10}"
+            f"  {entry['name']:46}{number(entry['calls']):>10}"
+            f"{number(entry['per_derivative_evaluation']):>10}"
+            f"{seconds(entry['time']):>10}{seconds(1e-6 * entry['mean_us']):>10}"
         )
     timed = loop["wall_time"]
     lines += [
         "",
-        f"logging (one run each; the timed runs ranged {_seconds(timed['min'])} to "
-        f"{_seconds(timed['max'])}):",
+        f"logging (one run each; the timed runs ranged {seconds(timed['min'])} to "
+        f"{seconds(timed['max'])}):",
     ]
     for entry in report["logging"]:
         relative = entry.get("relative_to_timed")
         lines.append(
-            f"  {entry['logging']:14}{_seconds(entry['wall_time']):>10}"
-            f"{_number(entry['integrator_steps']):>10} steps"
-            + (f"  ({100 * (relative - 1):+.1f} % vs timed median)" if relative else "")
+            f"  {entry['logging']:14}{seconds(entry['wall_time']):>10}"
+            f"{number(entry['integrator_steps']):>10} steps"
+            + (f"  ({_signed_percent(relative - 1)} vs timed median)" if relative else "")
         )
     lines += [
         "",
-        f"memory: peak RSS {memory['peak_rss_mb']:.0f} MB (process), Python allocations "
-        f"peak {memory['python_peak_mb']:.1f} MB (tracemalloc, warm-up run)",
-        f"force check (warm-up): peak {_number(loop['peak_force'])} N, contact losses "
-        f"{_number(loop['contact_losses'])}",
+        f"memory: peak RSS {number(memory['peak_rss_mb'], ' MB')} (process), Python allocations "
+        f"peak {number(memory['python_peak_mb'], ' MB')} (tracemalloc, warm-up run)",
+        f"force check (warm-up): peak {number(loop['peak_force'])} N, contact losses "
+        f"{number(loop['contact_losses'])}",
     ]
     environment = report["environment"]
     lines.append(

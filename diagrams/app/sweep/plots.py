@@ -1,0 +1,130 @@
+"""The sweep's summary plots: per swept key, the metrics against the key's value."""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+from admittance.diagrams.app import formatting
+from admittance.diagrams.app.formatting import number
+from admittance.diagrams.app.result_folder import atomic_write
+from admittance.diagrams.app.sweep.definition import SweepDefinition
+from admittance.diagrams.app.sweep.folder import PLOT_PREFIX
+from admittance.diagrams.app.sweep.summary import DEGRADED_FRACTION, as_number
+
+__all__ = ["PLOTTED_METRICS", "plot_summary"]
+
+PLOTTED_METRICS = (
+    ("peak_force", "peak force (N)"),
+    ("steady_state_force_error", "steady-state |F - Fr| (N)"),
+    ("rms_force_error", "RMS force error (N)"),
+    ("mean_abs_force_error_settled", "settled mean |F - Fr| (N)"),
+    ("contact_losses", "contact losses"),
+    ("settling_first_contact_0", "settling after first contact (s)"),
+    ("force_min_while_wall_moves", "min force while the wall moves (N)"),
+    ("force_max_while_wall_moves", "max force while the wall moves (N)"),
+)
+
+
+def _plot_name(key: str) -> str:
+    return PLOT_PREFIX + re.sub(r"[^A-Za-z0-9_.-]", "_", key) + ".png"
+
+
+def plot_summary(definition: SweepDefinition, rows: Sequence[Mapping], out_dir: Path) -> list[Path]:
+    """One PNG per swept key: the metrics against the key; failed points as red crosses."""
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator, NullFormatter
+    from matplotlib.transforms import blended_transform_factory
+
+    written = []
+    rows = sorted(rows, key=lambda r: r["index"])
+    references = {as_number(r.get("metrics", {}).get("force_reference")) for r in rows}
+    references.discard(None)
+    for key in definition.keys:
+        raw = [r.get("values", {}).get(key) for r in rows]
+        numeric = all(as_number(v) is not None for v in raw)
+        if numeric:
+            positions = [as_number(v) for v in raw]
+            categories = None
+        else:
+            categories = []
+            for value in raw:
+                if formatting.value(value) not in categories:
+                    categories.append(formatting.value(value))
+            positions = [categories.index(formatting.value(v)) for v in raw]
+        log_x = numeric and key in definition.log_keys and min(positions) > 0
+        present = {name for row in rows for name in row.get("metrics", {})}
+        plotted = [(name, label) for name, label in PLOTTED_METRICS if name in present]
+        if not plotted:  # every point failed: show where
+            plotted = PLOTTED_METRICS[:1]
+        grid_rows = math.ceil(len(plotted) / 2)
+        figure = Figure(figsize=(11, 2.7 * grid_rows + 0.5))
+        axes = figure.subplots(grid_rows, 2, sharex=True, squeeze=False).ravel()
+        if len(plotted) % 2:
+            axes[-1].set_visible(False)
+            axes = axes[:-1]
+        for axis, (name, label) in zip(axes, plotted, strict=True):
+            xs, ys = [], []
+            failed_xs = []
+            for x, row in zip(positions, rows, strict=True):
+                if row.get("failed"):
+                    failed_xs.append(x)
+                    continue
+                y = as_number(row.get("metrics", {}).get(name))
+                if y is not None:
+                    xs.append(x)
+                    ys.append(y)
+            axis.plot(xs, ys, "o", ms=4, alpha=0.7, label="finished")
+            if failed_xs:
+                bottom = blended_transform_factory(axis.transData, axis.transAxes)
+                axis.plot(
+                    failed_xs,
+                    [0.03] * len(failed_xs),
+                    "x",
+                    color="red",
+                    ms=7,
+                    transform=bottom,
+                    label="failed",
+                )
+            if name == "steady_state_force_error" and len(references) == 1:
+                axis.axhline(
+                    DEGRADED_FRACTION * next(iter(references)),
+                    color="k",
+                    ls="--",
+                    lw=1,
+                    label=f"{number(100 * DEGRADED_FRACTION, ' %')} of Fr",
+                )
+            positive = [y for y in ys if y > 0]
+            if (
+                name != "contact_losses"
+                and positive
+                and len(positive) == len(ys)
+                and max(positive) / min(positive) > 100
+            ):
+                axis.set_yscale("log")
+            if name == "contact_losses":
+                axis.yaxis.set_major_locator(MaxNLocator(integer=True))
+                axis.set_ylim(-0.5, max([1.0, *ys]) + 0.5)
+            if log_x:
+                axis.set_xscale("log")
+                axis.xaxis.set_minor_formatter(NullFormatter())
+            elif numeric:
+                axis.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4))
+            axis.set_ylabel(label)
+            axis.grid(True, alpha=0.3)
+            if failed_xs or name == "steady_state_force_error":
+                axis.legend(loc="best", fontsize=7)
+        for axis in axes[-2:]:
+            axis.set_xlabel(key)
+            axis.tick_params(labelbottom=True)
+            if categories is not None:
+                axis.set_xticks(range(len(categories)), categories)
+                axis.set_xlim(-0.5, len(categories) - 0.5)
+        figure.suptitle(f"sweep of {definition.scenario_name}: metrics against {key}")
+        figure.tight_layout()
+        path = out_dir / _plot_name(key)
+        atomic_write(path, lambda temporary, f=figure: f.savefig(temporary, format="png", dpi=100))
+        written.append(path)
+    return written

@@ -1,0 +1,165 @@
+"""Running a sweep: the points not yet in points.jsonl, then the table, summary and plots."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from admittance.diagrams.app.formatting import number, seconds
+from admittance.diagrams.app.result_folder import atomic_write_text
+from admittance.diagrams.app.sweep.definition import SweepDefinition, SweepPoint
+from admittance.diagrams.app.sweep.folder import (
+    POINTS_FILE,
+    SUMMARY_FILE,
+    TABLE_FILE,
+    check_folder,
+    locked,
+    prepare_folder,
+)
+from admittance.diagrams.app.sweep.plots import plot_summary
+from admittance.diagrams.app.sweep.points import PointsFile, read_points, rewrite_points, run_point
+from admittance.diagrams.app.sweep.runner import (
+    WorkerDiedError,
+    check_engine,
+    check_workers,
+    run_tasks,
+    sigterm_interrupts,
+)
+from admittance.diagrams.app.sweep.summary import summarize, table_text
+
+__all__ = ["SweepOutcome", "run_sweep"]
+
+
+@dataclasses.dataclass
+class SweepOutcome:
+    """What a (finished) run of a sweep did and wrote."""
+
+    out_dir: Path
+    total: int
+    skipped: int
+    ran: int
+    failed: int
+    elapsed: float
+    summary: str
+    files: list[Path]
+
+
+def _task(definition: SweepDefinition, point: SweepPoint) -> dict:
+    return {
+        "index": point.index,
+        "point_id": point.point_id,
+        "values": point.values,
+        "scenario": definition.scenario_source,
+        "overrides": definition.overrides_of(point),
+    }
+
+
+def _silent(line: str) -> None:
+    pass
+
+
+def run_sweep(
+    definition: SweepDefinition,
+    out_dir: str | Path,
+    *,
+    workers: int | None = None,
+    engine: str = "local",
+    scheduler: str | None = None,
+    force: bool = False,
+    progress: Callable[[str], None] = _silent,
+) -> SweepOutcome:
+    """Runs the points of `definition` not yet in `out_dir`/points.jsonl; writes the table.
+
+    Args:
+        progress: called with one line per finished point (and on resume).
+
+    Raises:
+        ScenarioError: (a SweepError or the runner's) bad workers/engine/scheduler, a folder
+            holding another sweep (without `force`), dask missing; before any point runs.
+        KeyboardInterrupt: (Ctrl-C or SIGTERM) the workers are stopped first; points.jsonl
+            keeps every finished point, so running the same sweep again resumes.
+        WorkerDiedError: a worker process died; the finished points are kept likewise.
+    """
+    workers = check_workers(workers)
+    check_engine(engine, scheduler)
+    out_dir = Path(out_dir)
+    check_folder(out_dir, force)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    with locked(out_dir):
+        prepare_folder(definition, out_dir, force)
+        points_path = out_dir / POINTS_FILE
+        rows, bad = read_points(points_path)
+        if bad:
+            rewrite_points(points_path, rows.values())
+            progress(f"ignored {bad} unreadable line(s) of {points_path} (a run killed mid-write)")
+        wanted = {point.point_id for point in definition.points}
+        done = {point_id for point_id in rows if point_id in wanted}
+        todo = [point for point in definition.points if point.point_id not in done]
+        total = len(definition.points)
+        if done:
+            progress(
+                f"resuming {out_dir}: skipped {len(done)} finished points of {total}; "
+                f"{len(todo)} to run"
+            )
+        if todo:
+            where = f"dask at {scheduler}" if scheduler else f"{engine}, {workers} workers"
+            progress(f"running {len(todo)} points ({where})")
+        finished = len(done)
+        points_file = PointsFile(points_path)
+
+        def on_row(row: dict) -> None:
+            nonlocal finished
+            points_file.append(row)
+            rows[row["point_id"]] = row
+            finished += 1
+            metrics = row["metrics"]
+            outcome = (
+                f"FAILED: {row['failure']}"
+                if row["failed"]
+                else f"peak {number(metrics.get('peak_force'), ' N')}, steady-state error "
+                f"{number(metrics.get('steady_state_force_error'), ' N')}"
+            )
+            point = definition.points[row["index"]]
+            progress(
+                f"[{finished:{len(str(total))}d}/{total}] #{row['index']} ({point.describe()}) "
+                f"in {seconds(metrics.get('point_time'))}: {outcome}"
+            )
+
+        try:
+            with sigterm_interrupts():
+                run_tasks(
+                    run_point,
+                    [_task(definition, point) for point in todo],
+                    on_row,
+                    workers=workers,
+                    engine=engine,
+                    scheduler=scheduler,
+                    key=lambda task: task["point_id"],
+                )
+        except WorkerDiedError:
+            raise WorkerDiedError(
+                "a worker process died while running a point (killed, out of memory or "
+                f"crashed); the finished points are kept in {points_path}: run the same "
+                "command again to resume"
+            ) from None
+        finally:
+            points_file.close()
+        ours = [rows[point.point_id] for point in definition.points if point.point_id in rows]
+        summary = summarize(definition, ours)
+        table = out_dir / TABLE_FILE
+        atomic_write_text(table, table_text(definition.keys, ours))
+        atomic_write_text(out_dir / SUMMARY_FILE, summary)
+        plots = plot_summary(definition, ours, out_dir) if ours else []
+    return SweepOutcome(
+        out_dir=out_dir,
+        total=total,
+        skipped=len(done),
+        ran=len(todo),
+        failed=sum(bool(r.get("failed")) for r in ours),
+        elapsed=time.perf_counter() - start,
+        summary=summary,
+        files=[points_path, table, out_dir / SUMMARY_FILE, *plots],
+    )

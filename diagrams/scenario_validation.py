@@ -1,0 +1,379 @@
+"""The allowed values of every scenario key, and `validate`, which checks a scenario.
+
+Most keys are one number in a range: :data:`RANGES` lists them, key by key, as the message
+states them (``in (0, 1e5] s``, ``>= 0 s (0 = continuous)``). What is not a range follows
+the table: lists (their length, each entry), choices among names, and the checks that
+relate two keys (Fmax above Fr, the admittance's reach, what the sensor can read). Every
+failed check raises ScenarioError with one line: ``<key>: must be <allowed>, got <value>``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+import re
+import typing
+
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import MultibodyPlant
+
+from admittance.diagrams.scenario import (
+    CONTROLLER_KINDS,
+    FAULT_KINDS,
+    INTEGRATION_SCHEMES,
+    Scenario,
+    ScenarioError,
+)
+
+__all__ = ["MAX_SEED", "MAX_STIFFNESS", "PID_GAINS", "RANGES", "Range", "validate"]
+
+# Stiffer than any contact this arm can make (steel on steel at this scale is ~1e9 N/m).
+MAX_STIFFNESS = 1e9
+# Drake's RandomGenerator (a 32-bit Mersenne twister) takes the seed modulo 2**32.
+MAX_SEED = 2**32 - 1
+
+_INTERVAL = re.compile(r"^([(\[])\s*(\S+),\s*(\S+)\s*([)\]])$")
+_BOUND = re.compile(r"^(>=|>|<=|<)\s*(\S+)$")
+
+
+@dataclasses.dataclass(frozen=True)
+class Range:
+    """The allowed values of one number: an interval such as ``(0, 1e5]`` or a bound such
+    as ``>= 0``; always finite.
+
+    Attributes:
+        spec: the interval or bound, as the message writes it.
+        note: unit and explanation written after it (``s``, ``N (compressive)``).
+        text: the whole allowed-text, where it reads better than spec and note.
+    """
+
+    spec: str
+    note: str = ""
+    text: str | None = None
+    # 0 is allowed too (it switches the feature off: a continuous controller, no pacing).
+    or_zero: bool = False
+
+    def allows(self, value: float) -> bool:
+        try:
+            if not math.isfinite(value):
+                return False
+        except OverflowError:  # an integer beyond any float
+            return False
+        if self.or_zero and value == 0:
+            return True
+        interval = _INTERVAL.match(self.spec)
+        if interval:
+            opening, low, high, closing = interval.groups()
+            above = value > float(low) if opening == "(" else value >= float(low)
+            below = value < float(high) if closing == ")" else value <= float(high)
+            return above and below
+        operator, bound = _BOUND.match(self.spec).groups()
+        bound = float(bound)
+        return {
+            ">=": value >= bound,
+            ">": value > bound,
+            "<=": value <= bound,
+            "<": value < bound,
+        }[operator]
+
+    def allowed(self) -> str:
+        if self.text is not None:
+            return self.text
+        prefix = "in " if _INTERVAL.match(self.spec) else ""
+        return prefix + self.spec + (f" {self.note}" if self.note else "")
+
+
+# Every key that is one number in a range, in the order they are checked.
+RANGES: dict[str, Range] = {
+    "duration": Range("(0, 1e5]", "s"),
+    # Drake's RandomGenerator keeps 32 bits of a seed: 2**32 would repeat seed 0.
+    "seed": Range(f"[0, {MAX_SEED}]", "(a 32-bit seed)"),
+    "force_reference": Range("> 0", "N (compressive)"),
+    "wall.position": Range("> 0", text="in front of the base (> 0 m along x)"),
+    "wall.stiffness": Range(f"(0, {MAX_STIFFNESS:g}]", "N/m"),
+    "wall.velocity": Range("[-1, 1]", "m/s"),
+    "wall.motion_start": Range(">= 0", "s"),
+    # The joint velocity limits bound it further (closed_loop.CheckTrajectoryReachable).
+    "trajectory.frequency": Range("[0, 100]", "Hz"),
+    "admittance.gamma": Range("(0, 0.1]"),
+    "admittance.alpha": Range("[0, 10]", "s"),
+    "admittance.period": Range(
+        ">= 1e-5", or_zero=True, text="0 (continuous) or >= 1e-5 s (a 100 kHz controller)"
+    ),
+    "admittance.max_push": Range("(0, 0.5]", "m"),
+    "admittance.max_retract": Range("(0, 0.5]", "m"),
+    "admittance.force_bound_gain": Range("(0, 100]"),
+    "controller.wall_position_error": Range("[-0.1, 0.1]", "m"),
+    "controller.stiffness_error": Range("[-0.9, 10]", "(relative)"),
+    "controller.mass": Range("(0, 1000]"),
+    "controller.damping": Range("(0, 1e+06]"),
+    "controller.adaptation_rate": Range("(0, 10000]"),
+    "controller.stiffness": Range("[0, 1e6]", "N/m"),
+    "pid.period": Range(
+        ">= 1e-5", or_zero=True, text="0 (continuous) or >= 1e-5 s (a 100 kHz controller)"
+    ),
+    "sensor.noise_std": Range("[0, 100]", "N"),
+    "sensor.noise_period": Range(">= 1e-5", "s (a 100 kHz ADC)"),
+    "sensor.filter_cutoff": Range("(0, 1e6]", "Hz"),
+    # Finer than 1e-8 the implicit integrator crawls (1e-10: ten times slower than 1e-8)
+    # or gives up at the start.
+    "simulator.accuracy": Range("[1e-8, 0.1]"),
+    "simulator.max_step_size": Range(">= 1e-6", "s"),
+    # A pace of the run relative to real time: a tiny one would never finish.
+    "simulator.target_realtime_rate": Range(
+        ">= 0.01", or_zero=True, text="0 (as fast as possible) or >= 0.01 (x real time)"
+    ),
+    # The metrics average over 1 s windows: at least ten samples in each.
+    "logging.period": Range("[1e-5, 0.1]", or_zero=True, text="0 (every step) or in [1e-5, 0.1] s"),
+    "safety.max_stiffness": Range(f"(0, {MAX_STIFFNESS:g}]", "N/m"),
+    "safety.stability_margin": Range("[1, 100]"),
+    # A first contact bounces below 0.19 (systems/contact_model.py).
+    "safety.damping_ratio": Range("[0.2, 2]", "(a first contact bounces below 0.19)"),
+}
+
+# The PID's gains, each axis.
+PID_GAINS: dict[str, Range] = {
+    "kp": Range("(0, 1e6]", text="> 0 and <= 1e+06 on every axis"),
+    "kd": Range("[0, 1e5]", text=">= 0 and <= 100000 on every axis"),
+    "ki": Range("[0, 1e6]", text=">= 0 and <= 1e+06 on every axis"),
+}
+
+
+def _require(condition: bool, key: str, allowed: str, value) -> None:
+    if not condition:
+        raise ScenarioError(f"{key}: must be {allowed}, got {value!r}")
+
+
+def _require_one_of(value, key: str, choices: typing.Sequence[str]) -> None:
+    _require(value in choices, key, "one of " + ", ".join(choices), value)
+
+
+def _require_range(value, key: str, allowed: Range) -> None:
+    _require(allowed.allows(value), key, allowed.allowed(), value)
+
+
+def _value_of(scenario: Scenario, key: str):
+    value = scenario
+    for part in key.split("."):
+        value = getattr(value, part)
+    return value
+
+
+def _check_lists(s: Scenario) -> None:
+    """Lists of numbers: their lengths and values."""
+    finite = math.isfinite
+    t = s.trajectory
+    _require(len(t.center) == 3, "trajectory.center", "3 values (x, y, theta)", t.center)
+    _require(all(map(finite, t.center)), "trajectory.center", "finite", t.center)
+    _require(len(t.amplitude) == 3, "trajectory.amplitude", "3 values", t.amplitude)
+    _require(all(map(finite, t.amplitude)), "trajectory.amplitude", "finite", t.amplitude)
+    for name, allowed in PID_GAINS.items():
+        gains = getattr(s.pid, name)
+        key = f"pid.{name}"
+        _require(len(gains) == 3, key, "3 values (x, y, theta)", gains)
+        _require(all(map(allowed.allows, gains)), key, allowed.allowed(), gains)
+    r = s.arm
+    _require(
+        len(r.joint_guess) > 0 and all(map(finite, r.joint_guess)),
+        "arm.joint_guess",
+        "finite joint angles",
+        r.joint_guess,
+    )
+    _require(
+        len(r.initial_position) in (0, 3) and all(map(finite, r.initial_position)),
+        "arm.initial_position",
+        "empty or 3 finite values (x, y, theta)",
+        r.initial_position,
+    )
+
+
+def _check_entries(s: Scenario) -> None:
+    """The entries of wall.stiffness_steps and faults."""
+    finite = math.isfinite
+    previous = 0.0
+    for i, step in enumerate(s.wall.stiffness_steps):
+        key = f"wall.stiffness_steps[{i}]"
+        _require_range(step.stiffness, key + ".stiffness", RANGES["wall.stiffness"])
+        _require(
+            finite(step.time) and step.time >= previous,
+            key + ".time",
+            ">= 0 s and not before the previous step",
+            step.time,
+        )
+        previous = step.time
+    for i, fault in enumerate(s.faults):
+        key = f"faults[{i}]"
+        _require_one_of(fault.kind, key + ".kind", FAULT_KINDS)
+        _require(finite(fault.start) and fault.start >= 0, key + ".start", ">= 0 s", fault.start)
+        _require(finite(fault.end) and fault.end > fault.start, key + ".end", "> start", fault.end)
+        _require(finite(fault.value), key + ".value", "finite", fault.value)
+        if fault.kind == "stiffness_jump":
+            _require(
+                0 < fault.value <= MAX_STIFFNESS,
+                key + ".value",
+                f"in (0, {MAX_STIFFNESS:g}] N/m for stiffness_jump",
+                fault.value,
+            )
+        if fault.kind == "wall_retract":
+            _require(
+                fault.value > 0, key + ".value", "> 0 m (the wall moves away, +x)", fault.value
+            )
+        if fault.kind == "sensor_saturated":
+            _require(fault.value > 0, key + ".value", "> 0 N (the full-scale reading)", fault.value)
+
+
+def _check_choices(s: Scenario) -> None:
+    """Keys that name one of a few things, and the URDF file."""
+    _require_one_of(s.controller.kind, "controller.kind", CONTROLLER_KINDS)
+    _require(
+        s.controller.tuning in ("matched", "manual"),
+        "controller.tuning",
+        "'matched' or 'manual'",
+        s.controller.tuning,
+    )
+    _require(
+        s.sensor.kind in ("ideal", "flexiforce"),
+        "sensor.kind",
+        "'ideal' or 'flexiforce'",
+        s.sensor.kind,
+    )
+    _require(s.arm.urdf_path().is_file(), "arm.urdf", "an existing URDF file", s.arm.urdf)
+    _check_urdf(s.arm)
+    _require(
+        s.name not in ("", ".", "..") and not _NOT_IN_A_NAME.search(s.name),
+        "name",
+        "a file name (results/<name> is the default --out)",
+        s.name,
+    )
+    _require_one_of(
+        s.simulator.integration_scheme, "simulator.integration_scheme", INTEGRATION_SCHEMES
+    )
+    _require(s.simulator.start_time == 0.0, "simulator.start_time", "0", s.simulator.start_time)
+
+
+# A scenario's name is a folder name: no separator, no control character.
+_NOT_IN_A_NAME = re.compile(r"[/\\\x00-\x1f]")
+
+
+@functools.lru_cache(maxsize=16)
+def _urdf_problem(path: str, modified: int, size: int, fingertip_frame: str):
+    """(key, problem) of the URDF file `path` for the closed loop, or None if it is fine.
+
+    Drake parses it into a plant of its own; cached by the file's modification time and
+    size, so that a sweep's thousand points parse it once.
+    """
+    plant = MultibodyPlant(time_step=0.0)
+    try:
+        Parser(plant).AddModels(path)
+        plant.Finalize()
+    except RuntimeError as error:
+        message = str(error).splitlines()[0] if str(error) else type(error).__name__
+        detail = re.sub(r"^(.*?:\d+: )?error: ", "", message)  # "<file>:<line>: error: "
+        return "arm.urdf", f"{path} is not a URDF that Drake reads: {detail}"
+    velocities, actuators = plant.num_velocities(), plant.num_actuators()
+    if velocities < 3 or actuators != velocities:
+        return (
+            "arm.urdf",
+            f"must be a fully actuated arm of at least 3 joints (the PID drives x, y and theta "
+            f"of the fingertip), got {velocities} joint velocities and {actuators} actuators "
+            f"in {path}",
+        )
+    if not plant.HasFrameNamed(fingertip_frame):
+        return "arm.fingertip_frame", f"the URDF has no frame named '{fingertip_frame}'"
+    return None
+
+
+def _check_urdf(arm) -> None:
+    """The arm's URDF can be read, Drake parses it, and the PID can drive what it holds."""
+    path = arm.urdf_path()
+    try:
+        with path.open("rb") as file:
+            file.read(1)
+        status = path.stat()
+    except OSError as error:
+        raise ScenarioError(f"arm.urdf: {path} cannot be read: {error.strerror}") from None
+    problem = _urdf_problem(str(path), status.st_mtime_ns, status.st_size, arm.fingertip_frame)
+    if problem is not None:
+        key, message = problem
+        raise ScenarioError(f"{key}: {message}")
+
+
+def _check_relations(s: Scenario) -> None:
+    """Checks that relate two keys (each key alone is valid by now)."""
+    w, a = s.wall, s.admittance
+    _require(
+        w.motion_end >= w.motion_start, "wall.motion_end", ">= wall.motion_start", w.motion_end
+    )
+    _require(
+        a.max_force > s.force_reference,
+        "admittance.max_force",
+        f"> force_reference ({s.force_reference:g} N), or .inf for no bound",
+        a.max_force,
+    )
+    if a.enabled:
+        # Past max_push only the PID's slow integral could add force: Fr would not be reached.
+        needed = s.force_reference / s.pid.kp[0]
+        _require(
+            a.max_push > needed,
+            "admittance.max_push",
+            f"> force_reference / pid.kp[0] = {needed:.3g} m (the PID's push at the bound, "
+            f"Kp max_push, must exceed Fr)",
+            a.max_push,
+        )
+    if s.sensor.kind == "flexiforce":
+        # A reference the sensor cannot read would wind the admittance up forever.
+        from admittance.systems.flexiforce import FlexiForceSensor
+
+        full_scale = FlexiForceSensor().saturation_force
+        _require(
+            s.force_reference < 0.9 * full_scale,
+            "force_reference",
+            f"< {0.9 * full_scale:.4g} N with sensor.kind=flexiforce (90 % of the A201's "
+            f"{full_scale:.4g} N full scale)",
+            s.force_reference,
+        )
+        _require(
+            not math.isfinite(a.max_force) or a.max_force < full_scale,
+            "admittance.max_force",
+            f"< {full_scale:.4g} N with sensor.kind=flexiforce (a bound the A201 cannot read "
+            "cannot be enforced), or .inf",
+            a.max_force,
+        )
+
+
+def _check_safety(s: Scenario) -> None:
+    """What the safety layer needs of the rest of the scenario (safety.enabled)."""
+    if not s.safety.enabled:
+        return
+    _require(
+        s.controller_kind == "optimal_admittance",
+        "safety.enabled",
+        "used with the paper's controller (controller.kind optimal_admittance, "
+        "admittance.enabled true)",
+        s.safety.enabled,
+    )
+    _require(
+        math.isfinite(s.admittance.max_force),
+        "admittance.max_force",
+        "finite with safety.enabled (the layer keeps the force under it)",
+        s.admittance.max_force,
+    )
+    _require(
+        s.admittance.period == 0 and s.pid.period == 0,
+        "safety.enabled",
+        "used with the continuous controller (admittance.period and pid.period 0)",
+        s.safety.enabled,
+    )
+
+
+def validate(scenario: Scenario) -> Scenario:
+    """Checks every key of `scenario`; raises ScenarioError naming the first bad key."""
+    for key, allowed in RANGES.items():
+        _require_range(_value_of(scenario, key), key, allowed)
+    _check_lists(scenario)
+    _check_entries(scenario)
+    _check_choices(scenario)
+    _check_relations(scenario)
+    _check_safety(scenario)
+    return scenario
