@@ -20,14 +20,13 @@ The estimate moves toward k_obs in log scale (the stiffness spans decades):
 g = 1 toward a stiffer wall, with k_obs limited to 2 k_hat per sample (a stiffness jump at
 fixed penetration shows a force step with almost no motion: its secant is meaningless,
 and the next samples, as the law backs off, show the new slope), and g = 3/4 toward a
-softer one (the three or four informative samples of a first contact's loading bring the
-prior to within (1/4)^3 of the wall's log-distance from it). Before any contact k_hat is
-the prior, the scenario's upper bound on the wall's stiffness: the gains are the most
-cautious until the wall has shown how soft it is.
-
-Limits (docs/safety.md): a wall that moves while in contact adds its travel to x - x_a
-without a force change, so the secant of a later loading (a receding wall that stops) is
-biased low; the layer then returns the gain toward the user's Gamma, never above it.
+softer one, but only during the loading that follows a contact's onset (the first
+`loading_time`, 0.5 s): its three or four informative samples bring the prior to within
+(1/4)^3 of the wall's log-distance from it. Later in a contact the estimate only rises: a
+wall that moves while in contact adds its travel to x - x_a without a force change, so
+the secant of a later loading (a receding wall that stops) would be biased low, the unsafe
+way. Before any contact k_hat is the prior, the scenario's upper bound on the wall's
+stiffness: the gains are the most cautious until the wall has shown how soft it is.
 
 In an analysis diagram the estimate is frozen (``frozen_estimate``): no state, the
 constant as output, as the gain schedule is frozen at an equilibrium.
@@ -62,8 +61,12 @@ GAIN_UP = 1.0
 GAIN_DOWN = 0.75
 MAX_RISE = 2.0
 
-# Discrete state layout: ln k_hat, anchor position, anchor force, anchored (0/1).
-_LOG_ESTIMATE, _ANCHOR_POSITION, _ANCHOR_FORCE, _ANCHORED = 0, 1, 2, 3
+# How long after a contact's onset the estimate may fall, s.
+LOADING_TIME = 0.5
+
+# Discrete state layout: ln k_hat, anchor position, anchor force, the contact's onset
+# time, anchored (0/1).
+_LOG_ESTIMATE, _ANCHOR_POSITION, _ANCHOR_FORCE, _ONSET, _ANCHORED = 0, 1, 2, 3, 4
 
 
 def _positive(name: str, value: float) -> float:
@@ -78,27 +81,29 @@ def _value(x) -> float:
 
 def update_estimate(
     log_estimate: float,
-    anchor: tuple[float, float] | None,
+    anchor: tuple[float, float, float] | None,
     position: float,
     force: float,
+    time: float,
     *,
     contact_force: float,
     informative_force: float,
     trusted: bool = True,
-) -> tuple[float, tuple[float, float] | None]:
+) -> tuple[float, tuple[float, float, float] | None]:
     """One sample of the estimator (module docstring): the new (ln k_hat, anchor).
 
     Args:
         log_estimate: ln k_hat before the sample.
-        anchor: (x_a, F_a), or None when there is none.
-        position: x[k], m; force: F[k], N.
+        anchor: (x_a, F_a, the contact's onset time), or None when there is none.
+        position: x[k], m; force: F[k], N; time: t[k], s.
         contact_force: F_c; informative_force: dF_min, N.
         trusted: the reading may be used.
     """
     if not (trusted and math.isfinite(force)) or force < contact_force:
         return log_estimate, None
     if anchor is None:
-        return log_estimate, (position, force)
+        return log_estimate, (position, force, time)
+    onset = anchor[2]
     force_change = force - anchor[1]
     if abs(force_change) < informative_force:
         return log_estimate, anchor
@@ -108,9 +113,9 @@ def update_estimate(
         if log_observed > log_estimate:
             limited = min(log_observed, log_estimate + math.log(MAX_RISE))
             log_estimate += GAIN_UP * (limited - log_estimate)
-        else:
+        elif time - onset <= LOADING_TIME:
             log_estimate += GAIN_DOWN * (log_observed - log_estimate)
-    return log_estimate, (position, force)
+    return log_estimate, (position, force, onset)
 
 
 @TemplateSystem.define("StiffnessEstimator_", T_list=[float, AutoDiffXd])
@@ -118,7 +123,7 @@ def StiffnessEstimator_(T):
     class Impl(LeafSystem_[T]):
         """Sampled secant stiffness between anchor samples in contact (module docstring).
 
-        State (discrete, period T): [ln k_hat, x_a, F_a, anchored]. Output: k_hat, N/m.
+        State (discrete, period T): [ln k_hat, x_a, F_a, onset, anchored]. Output: k_hat, N/m.
 
         .. pydrake_system::
 
@@ -173,7 +178,7 @@ def StiffnessEstimator_(T):
             self.sensor_fault_input = self.DeclareVectorInputPort("sensor_fault", 1)
             if self._frozen is None:
                 self._state_index = self.DeclareDiscreteState(
-                    BasicVector_[T]([math.log(self._prior), 0.0, 0.0, 0.0])
+                    BasicVector_[T]([math.log(self._prior), 0.0, 0.0, 0.0, 0.0])
                 )
                 self.DeclarePeriodicDiscreteUpdateEvent(
                     period_sec=self._period, offset_sec=0.0, update=self._Update
@@ -210,7 +215,7 @@ def StiffnessEstimator_(T):
         def set_estimate(self, context, stiffness: float) -> None:
             """Sets k_hat (N/m) and drops the anchor."""
             context.get_mutable_discrete_state(self._state_index).SetFromVector(
-                [math.log(_positive("stiffness", stiffness)), 0.0, 0.0, 0.0]
+                [math.log(_positive("stiffness", stiffness)), 0.0, 0.0, 0.0, 0.0]
             )
 
         def _CalcFrozen(self, context, output) -> None:
@@ -229,17 +234,22 @@ def StiffnessEstimator_(T):
             plant_state = self.estimated_state_input.Eval(context)
             self._kinematics.set_state(np.array([T(_value(x)) for x in plant_state]))
             position = _value(self._kinematics.pose()[self._normal_axis])
-            anchor = (state[_ANCHOR_POSITION], state[_ANCHOR_FORCE]) if state[_ANCHORED] else None
+            anchor = (
+                (state[_ANCHOR_POSITION], state[_ANCHOR_FORCE], state[_ONSET])
+                if state[_ANCHORED]
+                else None
+            )
             log_estimate, anchor = update_estimate(
                 state[_LOG_ESTIMATE],
                 anchor,
                 position,
                 force,
+                _value(context.get_time()),
                 contact_force=self._contact_force,
                 informative_force=self._informative_force,
                 trusted=trusted,
             )
-            new = [log_estimate, *(anchor if anchor else (0.0, 0.0)), float(anchor is not None)]
+            new = [log_estimate, *(anchor if anchor else (0.0, 0.0, 0.0)), float(bool(anchor))]
             discrete_state.get_mutable_vector(self._state_index).SetFromVector([T(x) for x in new])
 
     return Impl

@@ -10,6 +10,7 @@ import pytest
 from admittance.diagrams.closed_loop import SolvePlanarInverseKinematics
 from admittance.systems.stiffness_estimator import (
     GAIN_DOWN,
+    LOADING_TIME,
     StiffnessEstimator,
     update_estimate,
 )
@@ -20,17 +21,18 @@ INFORMATIVE = 1.0
 WALL = 0.2  # Xe, m
 
 
-def _run(samples, stiffness, log_estimate=None, wall=WALL):
-    """Feeds (force) samples on a static linear wall: x = Xe + F / Ke (F > 0)."""
+def _run(samples, stiffness, log_estimate=None, wall=WALL, period=0.005):
+    """Feeds (force) samples, one per period, on a static linear wall: x = Xe + F / Ke."""
     anchor = None
     log_estimate = math.log(PRIOR) if log_estimate is None else log_estimate
-    for force in samples:
+    for k, force in enumerate(samples):
         position = wall + max(force, 0.0) / stiffness
         log_estimate, anchor = update_estimate(
             log_estimate,
             anchor,
             position,
             force,
+            k * period,
             contact_force=CONTACT,
             informative_force=INFORMATIVE,
         )
@@ -70,19 +72,44 @@ def test_force_and_motion_of_opposite_signs_are_not_a_spring():
     """The force falls by 2 N while the tip moves 1 mm into the wall (a receding wall):
     no update, and the sample becomes the anchor."""
     log_estimate, anchor = update_estimate(
-        math.log(5e4), (0.2, 5.0), 0.201, 3.0, contact_force=CONTACT, informative_force=1.0
+        math.log(5e4),
+        (0.2, 5.0, 0.0),
+        0.201,
+        3.0,
+        0.1,
+        contact_force=CONTACT,
+        informative_force=1.0,
     )
     assert log_estimate == math.log(5e4)
-    assert anchor == (0.201, 3.0)
+    assert anchor == (0.201, 3.0, 0.0)
+
+
+def test_after_the_loading_the_estimate_only_rises():
+    """A receding wall that stops, 4 s into a contact: the tip travelled 20 mm at 5 N, the
+    force then rises 2 N; the secant 2 / 0.02 = 100 N/m is the wall's travel, not its
+    stiffness, and must not lower an estimate of 1e5. Inside the first 0.5 s it would."""
+    assert LOADING_TIME == 0.5
+    for time, expected in ((4.0, math.log(1e5)), (0.3, math.log(1e5) + 0.75 * math.log(1e-3))):
+        log_estimate, _ = update_estimate(
+            math.log(1e5),
+            (0.15, 5.0, 0.0),
+            0.17,
+            7.0,
+            time,
+            contact_force=CONTACT,
+            informative_force=1.0,
+        )
+        assert log_estimate == pytest.approx(expected)
 
 
 def test_free_motion_and_untrusted_readings_drop_the_anchor():
     for force, trusted in ((0.3, True), (5.0, False), (math.nan, True)):
         log_estimate, anchor = update_estimate(
             math.log(5e4),
-            (0.2, 2.0),
+            (0.2, 2.0, 0.0),
             0.2001,
             force,
+            0.1,
             contact_force=CONTACT,
             informative_force=1.0,
             trusted=trusted,
