@@ -264,6 +264,9 @@ def compute_metrics(result: SimulationResult) -> dict:
             metrics["faults"][-1].update(fault_detection(detections, fault.start, fault.end))
     if result.safety is not None:
         metrics["safety"] = safety_metrics(result)
+        # Scalars for the sweep's table (it keeps the top-level scalars).
+        metrics["safety_detections"] = len(metrics["safety"]["detections"])
+        metrics["safety_final_stiffness_estimate"] = metrics["safety"]["final_stiffness_estimate"]
     if scenario.wall.velocity != 0.0:
         moving = _window(time, scenario.wall.motion_start, min(scenario.wall.motion_end, duration))
         if moving.any():
