@@ -143,3 +143,13 @@ def test_a_fast_genuine_change_is_allowed_by_its_own_rate(monitor):
         assert not _sample(monitor, reading + NOISE * (-1) ** k, observed=reading - 4.0)[
             "implausible"
         ]
+
+
+def test_a_modest_disagreement_beyond_the_tolerance_is_flagged(monitor):
+    """1.5 N below the arm's estimate, with the noise's sample-to-sample changes (at most
+    about 0.1 N here): 1.5 > 1.12 + 0.1 / (0.005 * 100) = 1.32 N, so it is caught; the lag
+    allowance must not swallow it."""
+    for reading in _noisy(5):
+        _sample(monitor, reading)
+    flags = [_sample(monitor, r)["implausible"] for r in _noisy(6, seed=4, mean=3.5)]
+    assert flags[-1]
