@@ -16,15 +16,6 @@ tau_ext = J^T (-F, 0, 0) and the estimate of the compressive contact force is
 C^T v is left out: at the fingertip speeds of this arm (below 0.1 m/s, links of 0.2 m)
 it is below 1e-3 N m. The fault detector compares the sensor's reading with F_hat
 (systems/fault_detector.py).
-
-.. pydrake_system::
-
-    name: ContactForceObserver
-    input_ports:
-    - estimated_state
-    - actuation
-    output_ports:
-    - contact_force
 """
 
 from __future__ import annotations

@@ -27,19 +27,6 @@ output is 1 while any flag is set.
 
 At an analysis equilibrium there is no fault: with ``frozen`` the block has no state and
 passes the reading on (trusted_force = measured_force, no flag).
-
-.. pydrake_system::
-
-    name: SensorFaultDetector
-    input_ports:
-    - measured_force
-    - observed_force
-    - stiffness_estimate
-    - estimated_state
-    output_ports:
-    - trusted_force
-    - sensor_fault
-    - fault_flags
 """
 
 from __future__ import annotations
@@ -144,7 +131,17 @@ def SensorFaultDetector_(T):
             if not (math.isfinite(noise_std) and noise_std >= 0):
                 raise ValueError(f"noise_std must be >= 0 N, got {noise_std}")
             self._plant = plant
-            self._frame_name = frame_name
+            self._arguments = dict(
+                frame_name=frame_name,
+                period=period,
+                noise_std=noise_std,
+                saturation_force=saturation_force,
+                contact_force=contact_force,
+                force_tolerance=force_tolerance,
+                observer_gain=observer_gain,
+                normal_axis=normal_axis,
+                frozen=frozen,
+            )
             self._period = float(period)
             self._noise_std = float(noise_std)
             self._saturation_force = float(saturation_force)
@@ -191,18 +188,7 @@ def SensorFaultDetector_(T):
 
         def _construct_copy(self, other, converter=None) -> None:
             Impl._construct(
-                self,
-                other._plant.ToScalarType[T](),
-                frame_name=other._frame_name,
-                period=other._period,
-                noise_std=other._noise_std,
-                saturation_force=other._saturation_force,
-                contact_force=other._contact_force,
-                force_tolerance=other._force_tolerance,
-                observer_gain=other._observer_gain,
-                normal_axis=other._normal_axis,
-                frozen=other._frozen,
-                converter=converter,
+                self, other._plant.ToScalarType[T](), converter=converter, **other._arguments
             )
 
         # --- accessors ---------------------------------------------------------------

@@ -30,16 +30,6 @@ stiffness: the gains are the most cautious until the wall has shown how soft it 
 
 In an analysis diagram the estimate is frozen (``frozen_estimate``): no state, the
 constant as output, as the gain schedule is frozen at an equilibrium.
-
-.. pydrake_system::
-
-    name: StiffnessEstimator
-    input_ports:
-    - measured_force
-    - estimated_state
-    - sensor_fault
-    output_ports:
-    - stiffness_estimate
 """
 
 from __future__ import annotations
@@ -162,7 +152,15 @@ def StiffnessEstimator_(T):
             """
             LeafSystem_[T].__init__(self, converter=converter)
             self._plant = plant
-            self._frame_name = frame_name
+            self._arguments = dict(
+                frame_name=frame_name,
+                period=period,
+                prior_stiffness=prior_stiffness,
+                contact_force=contact_force,
+                informative_force=informative_force,
+                normal_axis=normal_axis,
+                frozen_estimate=frozen_estimate,
+            )
             self._period = _positive("period", period)
             self._prior = _positive("prior_stiffness", prior_stiffness)
             self._contact_force = _positive("contact_force", contact_force)
@@ -192,16 +190,7 @@ def StiffnessEstimator_(T):
 
         def _construct_copy(self, other, converter=None) -> None:
             Impl._construct(
-                self,
-                other._plant.ToScalarType[T](),
-                frame_name=other._frame_name,
-                period=other._period,
-                prior_stiffness=other._prior,
-                contact_force=other._contact_force,
-                informative_force=other._informative_force,
-                normal_axis=other._normal_axis,
-                frozen_estimate=other._frozen,
-                converter=converter,
+                self, other._plant.ToScalarType[T](), converter=converter, **other._arguments
             )
 
         @property

@@ -138,3 +138,73 @@ def test_with_the_layer_off_the_loop_is_the_paper_s():
         }
         assert "safe_admittance" not in names and "optimal_admittance" in names
     assert math.isinf(load_scenario("paper_stiffness_step").admittance.max_force)
+
+
+# The Monte Carlo of docs/sweeps.md (200 walls of random stiffness, position and sensor
+# noise), with the layer on and Fmax = 10 N (docs/safety.md has the command and its table).
+MONTE_CARLO = {
+    "overrides": [
+        "duration=8",
+        "arm.initial_position=[0.14,-0.25,1.5707963267948966]",
+        "safety.enabled=true",
+        "admittance.max_force=10",
+    ],
+    "random": [
+        "wall.stiffness=loguniform:1e3:1e6",
+        "wall.position=uniform:0.145:0.155",
+        "sensor.noise_std=uniform:0:0.1",
+    ],
+    "samples": 200,
+    "seed": 1,
+}
+
+
+@pytest.mark.slow
+def test_the_monte_carlo_keeps_every_guarantee(tmp_path):
+    """At every one of the 200 points: the largest force, first contact included, at most
+    Fmax; no contact loss after first contact; the steady-state error within 2 % of Fr;
+    no fault flagged on a healthy sensor. About 30 min on 2 cores (2 workers)."""
+    from admittance.diagrams.app.sweep.definition import define_sweep
+    from admittance.diagrams.app.sweep.points import read_points
+    from admittance.diagrams.app.sweep.run import run_sweep
+
+    definition = define_sweep(
+        "paper_moving_wall",
+        MONTE_CARLO["overrides"],
+        random=MONTE_CARLO["random"],
+        samples=MONTE_CARLO["samples"],
+        seed=MONTE_CARLO["seed"],
+    )
+    run_sweep(definition, tmp_path / "sweep", workers=2)
+    rows, _ = read_points(tmp_path / "sweep" / "points.jsonl")
+    assert len(rows) == 200
+    for row in rows.values():
+        metrics = row["metrics"]
+        assert not row["failed"], row["failure"]
+        assert metrics["peak_force"] <= FMAX, row["values"]
+        assert metrics["contact_losses"] == 0, row["values"]
+        assert metrics["steady_state_force_error"] <= 0.02 * FR, row["values"]
+        assert metrics["safety_detections"] == 0, row["values"]
+
+
+@pytest.mark.parametrize(
+    "overrides, message",
+    [
+        (["safety.enabled=true"], "admittance.max_force: must be finite with safety.enabled"),
+        (["safety.damping_ratio=0.1"], "safety.damping_ratio: must be in [0.2, 2]"),
+        (
+            ["safety.enabled=true", "admittance.max_force=10", "controller.kind=pid_only"],
+            "safety.enabled: must be used with the paper's controller",
+        ),
+        (
+            ["safety.enabled=true", "admittance.max_force=10", "pid.period=0.001"],
+            "safety.enabled: must be used with the continuous controller",
+        ),
+    ],
+)
+def test_bad_safety_input_is_one_line_naming_the_key(overrides, message):
+    from admittance.diagrams.scenario import ScenarioError
+
+    with pytest.raises(ScenarioError) as error:
+        load_scenario("paper_stiffness_step", overrides)
+    assert str(error.value).startswith(message) and "\n" not in str(error.value)
