@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.systems.framework import Context, DiagramBuilder
 
-from admittance.diagrams.scenario import Scenario
+from admittance.diagrams.scenario import Scenario, ScenarioError
 from admittance.systems.contact_force_observer import ContactForceObserver
 from admittance.systems.fault_detector import FAULT_FLAGS, SensorFaultDetector
 from admittance.systems.flexiforce import FlexiForceSensor
@@ -108,7 +108,13 @@ class SafetyLayer:
         detector_context = self.detector.GetMyMutableContextFromRoot(root_context)
         reading = self.detector.measured_force_input.Eval(detector_context)[0]
         self.detector.set_reading(detector_context, float(reading))
-        self.law.start_at_tip(self.law.GetMyMutableContextFromRoot(root_context))
+        try:
+            self.law.start_at_tip(self.law.GetMyMutableContextFromRoot(root_context))
+        except ValueError as error:
+            raise ScenarioError(
+                f"arm.initial_position, admittance.max_retract, admittance.max_push: {error} "
+                "(with safety.enabled the reference starts at the tip)"
+            ) from None
 
     def set_equilibrium(self, root_context: Context, offset: float, external_torque) -> None:
         """At an analysis equilibrium: Xr = `offset`, the observer at `external_torque`."""

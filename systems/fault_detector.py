@@ -262,9 +262,10 @@ def SensorFaultDetector_(T):
             observed = _value(self.observed_force_input.Eval(context)[0])
             stiffness = _value(self.stiffness_estimate_input.Eval(context)[0])
             plant_state = self.estimated_state_input.Eval(context)
-            self._kinematics.set_state(np.array([_value(x) for x in plant_state]))
+            self._kinematics.set_state(np.array([T(_value(x)) for x in plant_state]))
             velocity = np.array([_value(x) for x in plant_state[self._num_positions :]])
-            speed = abs((self._kinematics.jacobian() @ velocity)[self._normal_axis])
+            jacobian = np.array([[_value(x) for x in row] for row in self._kinematics.jacobian()])
+            speed = abs((jacobian @ velocity)[self._normal_axis])
             predicted_rate = stiffness * speed
             if self._noise_std > 0:
                 unchanged = change < self._noise_std / UNCHANGED_NOISE_SHARE

@@ -302,12 +302,23 @@ def SafeAdmittance_(T):
 
         # --- initial conditions --------------------------------------------------------
         def start_at_tip(self, context) -> None:
-            """Xc = the tip's position along the normal, s = its target (a run's start)."""
+            """Xc = the tip's position along the normal, s = its target (a run's start).
+
+            Raises:
+                ValueError: the tip is farther from Xd than the travel bounds of Xr allow
+                    (the reference could not start at the tip).
+            """
             state = self.estimated_state_input.Eval(context)
             self._kinematics.set_state(state)
             tip = _value(self._kinematics.pose()[self._axis])
             desired = _value(self.desired_position_input.Eval(context)[self._axis])
-            self._set_offset(context, tip - desired)
+            offset = tip - desired
+            if not -self._max_retract <= offset <= self._max_push:
+                raise ValueError(
+                    f"the tip starts {offset:+.4g} m from Xd along the normal, outside "
+                    f"[-{self._max_retract:g}, {self._max_push:g}] m"
+                )
+            self._set_offset(context, offset)
 
         def set_equilibrium(self, context, offset: float) -> None:
             """Xr = `offset` and s at its target (an equilibrium of the analysis)."""

@@ -222,6 +222,9 @@ def test_every_system_of_the_layer_converts_to_autodiff(arm_plant):
         if context.num_continuous_states():
             converted.EvalTimeDerivatives(context)
         if context.num_discrete_state_groups():
+            # Twice: the first sample only records the reading (no previous one yet).
+            update = converted.EvalUniquePeriodicDiscreteUpdate(context)
+            context.get_mutable_discrete_state(0).SetFromVector(update.get_vector(0).CopyToVector())
             converted.EvalUniquePeriodicDiscreteUpdate(context)
     # The law: its offset depends on the joint velocities (the damper) with gradient
     # -(c / Kp) J_x.
