@@ -1,9 +1,14 @@
 """The paper's Fig. 1 as a Drake Diagram: arm, wall, sensor, optimal admittance and PID.
 
-Xd --(+)--> Xc --> CartesianPid --tau--> plant --state--> CompliantWall --F--> sensor
-      ^ Xr                                  ^  spatial force |                    |
-      +------- OptimalAdmittance <-- Fm ----+----------------+--------------------+
+Xd --(+)--> Xc --> CartesianPid --tau--> plant --state--> PlanarKinematics
+      ^ Xr              ^ X, dX/dt, J      ^ spatial force      | X, dX/dt, J
+      |                 +------------------|--------------------+
+      |                                CompliantWall <----------+
+      +------- OptimalAdmittance <-- Fm -- sensor <-- F --+
                       ^ Fr
+
+The fingertip's kinematics are computed once per evaluation and read by the PID and the
+wall; with the ideal sensor (the paper's simulation) Fm is the wall's F itself.
 """
 
 from __future__ import annotations
@@ -42,7 +47,7 @@ from admittance.systems.cartesian_pid import CartesianPid
 from admittance.systems.compliant_wall import CompliantWall
 from admittance.systems.desired_trajectory import DesiredTrajectory
 from admittance.systems.flexiforce import FlexiForceSensor
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PlanarFrameKinematics, PlanarKinematics
 from admittance.systems.sensor_fault import SensorFault
 
 __all__ = [
@@ -68,7 +73,10 @@ class ClosedLoop:
     trajectory: DesiredTrajectory
     pid: CartesianPid
     wall: CompliantWall
-    sensor: FlexiForceSensor
+    # The FlexiForce chain (None for the ideal sensor, whose reading is the true force).
+    sensor: FlexiForceSensor | None
+    # X, dX/dt and J of the fingertip, read by the PID and the wall.
+    kinematics: PlanarKinematics
     # The force controller of scenario.controller_kind (None for pid_only).
     admittance: object | None
     random_sources: list[RandomSource] = field(default_factory=list)
@@ -152,10 +160,20 @@ def _AddDesiredTrajectory(builder: DiagramBuilder, trajectory: TrajectoryConfig)
     return system
 
 
+def _AddKinematics(
+    builder: DiagramBuilder, plant: MultibodyPlant, fingertip_frame: str
+) -> PlanarKinematics:
+    """X, dX/dt and J of the fingertip, once per evaluation, for the PID and the wall."""
+    system = builder.AddSystem(PlanarKinematics(plant, frame_name=fingertip_frame))
+    system.set_name("fingertip_kinematics")
+    builder.Connect(plant.get_state_output_port(), system.estimated_state_input)
+    return system
+
+
 def _AddWall(
     builder: DiagramBuilder,
     plant: MultibodyPlant,
-    fingertip_frame: str,
+    kinematics: PlanarKinematics,
     wall: WallConfig,
     faults: list[FaultConfig],
 ) -> CompliantWall:
@@ -163,7 +181,7 @@ def _AddWall(
     system = builder.AddSystem(
         CompliantWall(
             plant,
-            frame_name=fingertip_frame,
+            frame_name=kinematics.frame_name,
             position=wall.position,
             stiffness=wall.stiffness,
             stiffness_steps=_stiffness_schedule(wall, faults),
@@ -176,7 +194,7 @@ def _AddWall(
         )
     )
     system.set_name("compliant_wall")
-    builder.Connect(plant.get_state_output_port(), system.estimated_state_input)
+    builder.Connect(kinematics.kinematics_output, system.kinematics_input)
     builder.Connect(
         system.applied_spatial_force_output, plant.get_applied_spatial_force_input_port()
     )
@@ -193,25 +211,35 @@ def _AddSensor(
 ):
     """The force sensor on the wall's contact force, its faults and its noise source.
 
+    The ideal sensor is a wire: its reading is the contact force, with no system to
+    evaluate.
+
     Returns:
-        (the sensor, the port of the force it reports, the random sources added).
+        (the FlexiForce system or None, the port of the force it reports, the random
+        sources added).
     """
-    system = builder.AddSystem(
-        FlexiForceSensor(kind=sensor.kind, filter_cutoff_hz=sensor.filter_cutoff)
-    )
-    system.set_name("flexiforce_sensor")
-    builder.Connect(contact_force_output, system.contact_force_input)
-    measured_force_output = system.measured_force_output
+    system = None
+    if sensor.kind == "ideal":
+        measured_force_output = contact_force_output
+    else:
+        system = builder.AddSystem(
+            FlexiForceSensor(kind=sensor.kind, filter_cutoff_hz=sensor.filter_cutoff)
+        )
+        system.set_name("flexiforce_sensor")
+        builder.Connect(contact_force_output, system.contact_force_input)
+        measured_force_output = system.measured_force_output
     sensor_faults = [
         (f.kind, f.start, f.end, f.value) for f in faults if f.kind.startswith("sensor_")
     ]
     if sensor_faults:
         fault = builder.AddSystem(SensorFault(sensor_faults))
         fault.set_name("sensor_fault")
-        builder.Connect(system.measured_force_output, fault.measured_force_input)
+        builder.Connect(measured_force_output, fault.measured_force_input)
         measured_force_output = fault.reported_force_output
     random_sources = []
-    if noise and sensor.kind != "ideal" and sensor.noise_std > 0:
+    if system is None:
+        return system, measured_force_output, random_sources
+    if noise and sensor.noise_std > 0:
         source = builder.AddSystem(
             RandomSource(RandomDistribution.kGaussian, 1, sensor.noise_period)
         )
@@ -231,7 +259,7 @@ def _AddSensor(
 def _AddPid(
     builder: DiagramBuilder,
     plant: MultibodyPlant,
-    fingertip_frame: str,
+    kinematics: PlanarKinematics,
     pid: PidConfig,
     desired_velocity_output,
 ) -> CartesianPid:
@@ -239,7 +267,7 @@ def _AddPid(
     system = builder.AddSystem(
         CartesianPid(
             plant,
-            frame_name=fingertip_frame,
+            frame_name=kinematics.frame_name,
             kp=pid.kp,
             kd=pid.kd,
             ki=pid.ki,
@@ -247,7 +275,7 @@ def _AddPid(
         )
     )
     system.set_name("cartesian_pid")
-    builder.Connect(plant.get_state_output_port(), system.estimated_state_input)
+    builder.Connect(kinematics.kinematics_output, system.kinematics_input)
     builder.Connect(system.actuation_output, plant.get_actuation_input_port())
     builder.Connect(desired_velocity_output, system.commanded_velocity_input)
     return system
@@ -339,11 +367,12 @@ def BuildClosedLoop(
     frame = scenario.arm.fingertip_frame
     plant, scene_graph = AddScenarioArm(builder, scenario.arm)
     trajectory = _AddDesiredTrajectory(builder, scenario.trajectory)
-    wall = _AddWall(builder, plant, frame, scenario.wall, scenario.faults)
+    kinematics = _AddKinematics(builder, plant, frame)
+    wall = _AddWall(builder, plant, kinematics, scenario.wall, scenario.faults)
     sensor, measured_force_output, random_sources = _AddSensor(
         builder, wall.contact_force_output, scenario.sensor, scenario.faults, noise=not analysis
     )
-    pid = _AddPid(builder, plant, frame, scenario.pid, trajectory.desired_velocity_output)
+    pid = _AddPid(builder, plant, kinematics, scenario.pid, trajectory.desired_velocity_output)
     controller = _AddForceLoop(
         builder,
         scenario,
@@ -382,6 +411,7 @@ def BuildClosedLoop(
         pid=pid,
         wall=wall,
         sensor=sensor,
+        kinematics=kinematics,
         admittance=controller,
         random_sources=random_sources,
         loggers=loggers,
@@ -561,7 +591,13 @@ def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
     if isinstance(loop.admittance, SafetyLayer):
         loop.admittance.initialize(context)
     elif hasattr(loop.admittance, "set_initial_force_error"):
-        measured = loop.sensor.measured_force_output.Eval(loop.sensor.GetMyContextFromRoot(context))
+        # The reading before any injected sensor fault: the sensor's, or the true force.
+        reading = (
+            loop.wall.contact_force_output
+            if loop.sensor is None
+            else loop.sensor.measured_force_output
+        )
+        measured = reading.Eval(reading.get_system().GetMyContextFromRoot(context))
         admittance_context = loop.admittance.GetMyMutableContextFromRoot(context)
         loop.admittance.set_initial_force_error(
             admittance_context, np.array([scenario.force_reference]) - measured

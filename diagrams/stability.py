@@ -190,6 +190,8 @@ def sampled_spectral_radius(scenario: Scenario, period: float) -> float:
     open_loop = BuildClosedLoop(continuous, analysis=True, open_admittance_loop=True)
     context = open_loop.diagram.CreateDefaultContext()
     for system in (open_loop.plant, open_loop.pid, open_loop.sensor):
+        if system is None:  # the ideal sensor is a wire
+            continue
         source = equilibrium.loop.diagram.GetSubsystemByName(system.get_name())
         state = source.GetMyContextFromRoot(equilibrium.context).get_continuous_state_vector()
         system.GetMyMutableContextFromRoot(context).SetContinuousState(state.CopyToVector())

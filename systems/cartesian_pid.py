@@ -1,4 +1,13 @@
-"""The Cartesian PID motion controller of the paper (eq. 14-16)."""
+"""The Cartesian PID motion controller of the paper (eq. 14-16).
+
+``CartesianPid`` is a small Diagram. Its law, ``CartesianPidLaw``, is a Python LeafSystem
+that computes the torque and the rate of the integral term in one calc per evaluation. The
+continuous controller keeps that integral in Drake's ``Integrator`` (a C++ primitive) and
+splits the law's output with a ``Demultiplexer``, so that each derivative evaluation of a
+closed loop calls the PID's Python once (a LeafSystem with its own continuous state needs
+three: the law, its output and its derivatives). The sampled controller keeps the integral
+and the held torque as the law's discrete states, and outputs the held torque directly.
+"""
 
 from __future__ import annotations
 
@@ -6,15 +15,21 @@ from collections.abc import Sequence
 
 import numpy as np
 from pydrake.autodiffutils import AutoDiffXd
-from pydrake.common.value import Value
 from pydrake.math import max as scalar_max
 from pydrake.math import min as scalar_min
-from pydrake.systems.framework import LeafSystem_, ValueProducer
+from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem_
+from pydrake.systems.primitives import Demultiplexer, Integrator
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from admittance.systems.planar_kinematics import PlanarFrameKinematics, wrap_angle
+from admittance.systems.planar_kinematics import (
+    TASK_SIZE,
+    PlanarFrameKinematics,
+    kinematics_size,
+    wrap_angle,
+)
+from admittance.systems.ports import set_output
 
-__all__ = ["CartesianPid", "CartesianPid_"]
+__all__ = ["CartesianPid", "CartesianPidLaw", "CartesianPidLaw_"]
 
 
 def _gain_vector(name: str, value, size: int, *, allow_zero: bool) -> np.ndarray:
@@ -26,44 +41,45 @@ def _gain_vector(name: str, value, size: int, *, allow_zero: bool) -> np.ndarray
     return array
 
 
-@TemplateSystem.define("CartesianPid_", T_list=[float, AutoDiffXd])
-def CartesianPid_(T):
-    class Impl(LeafSystem_[T]):
-        """Cartesian PID with joint torques through the Jacobian transpose (paper eq. 14-16).
-
+_LAW = """
             ec = Xc - h(q),  dec/dt = dXc/dt - J(q) v                        (eq. 15)
             F_PID = Kp ec + Kd dec/dt + Ki integral(ec)                      (eq. 14)
             tau = clip(J(q)^T F_PID, -effort_limit, effort_limit)            (eq. 16)
+"""
 
-        X = (x, y, theta) of the controlled frame and J come from the plant's kinematics. The
-        angle error is wrapped to (-pi, pi]. The commanded velocity is whatever the caller
-        wires in; the project feeds dXd/dt only, so the admittance offset Xr is never
-        differentiated (its derivative would carry the force noise). Torques are clipped to
-        the actuators' effort limits read from the plant (the URDF), and mapped to the
-        actuation vector through the plant's actuation matrix. There is no gravity
-        compensation, as in the paper: the integral term carries the arm's weight. While an
-        actuator saturates, back-calculation anti-windup pulls the integral back (see
-        ``_integral_rate``), so a blocked arm does not wind it up.
 
-        With ``period > 0`` the controller is sampled: at each sample the torque is computed
-        and held (zero-order hold) and the integral advances by period * ec.
+@TemplateSystem.define("CartesianPidLaw_", T_list=[float, AutoDiffXd])
+def CartesianPidLaw_(T):
+    class Impl(LeafSystem_[T]):
+        """The law of the Cartesian PID (paper eq. 14-16); see ``CartesianPid``.
+
+            ec = Xc - h(q),  dec/dt = dXc/dt - J(q) v                        (eq. 15)
+            F_PID = Kp ec + Kd dec/dt + Ki z,  z = integral(ec)              (eq. 14)
+            tau = clip(J(q)^T F_PID, -effort_limit, effort_limit)            (eq. 16)
+            dz/dt = ec  (+ back-calculation while an actuator saturates)
+
+        Continuous (``period`` 0): memoryless. z is the ``integral`` input and the one
+        output is ``actuation_and_integral_rate`` = [tau; dz/dt] (nu + 3), computed in one
+        calc. Sampled (``period`` > 0): z and the held torque are discrete states; at each
+        sample tau is latched and z advances by period * dz/dt; the output ``actuation``
+        reads the held torque (a state output port), and there is no ``integral`` input.
 
         .. pydrake_system::
 
-            name: CartesianPid
+            name: CartesianPidLaw
             input_ports:
             - commanded_position
             - commanded_velocity
-            - estimated_state
+            - kinematics
+            - integral (continuous only)
             output_ports:
-            - actuation
+            - actuation_and_integral_rate (continuous) or actuation (sampled)
         """
 
         def _construct(
             self,
             plant,
             *,
-            frame_name: str = "fingertip",
             kp: float | Sequence[float],
             kd: float | Sequence[float],
             ki: float | Sequence[float],
@@ -73,16 +89,12 @@ def CartesianPid_(T):
             """
             Args:
                 plant: finalized MultibodyPlant_[T] of the arm (fully actuated).
-                frame_name: the controlled frame (the fingertip contact point).
                 kp, kd, ki: diagonal gains on (x, y, theta): N/m, N s/m, N/(m s) and the
                     rotational equivalents. kp > 0, kd >= 0, ki >= 0.
                 period: 0 for a continuous controller, otherwise its sampling period in s.
             """
             LeafSystem_[T].__init__(self, converter=converter)
             self._plant = plant
-            self._frame_name = frame_name
-            self._kinematics = PlanarFrameKinematics(plant, frame_name)
-            num_positions = plant.num_positions()
             num_velocities = plant.num_velocities()
             num_actuators = plant.num_actuated_dofs()
             if num_actuators != num_velocities:
@@ -90,9 +102,13 @@ def CartesianPid_(T):
                     f"the Cartesian PID needs a fully actuated arm: {num_actuators} actuators "
                     f"for {num_velocities} velocities"
                 )
+            self._num_velocities = num_velocities
             self._kp = _gain_vector("kp", kp, 3, allow_zero=False)
             self._kd = _gain_vector("kd", kd, 3, allow_zero=True)
             self._ki = _gain_vector("ki", ki, 3, allow_zero=True)
+            self._kp_list, self._kd_list, self._ki_list = (
+                gains.tolist() for gains in (self._kp, self._kd, self._ki)
+            )
             if not (np.isfinite(period) and period >= 0):
                 raise ValueError(f"period must be >= 0 s (0 = continuous), got {period}")
             self._period = float(period)
@@ -108,7 +124,7 @@ def CartesianPid_(T):
                 actuator = plant.get_joint_actuator(index)
                 selection[row, actuator.joint().velocity_start()] = 1.0
                 limit = actuator.effort_limit()
-                limits.append(limit if np.isfinite(limit) and limit > 0 else np.inf)
+                limits.append(limit)  # Drake keeps it > 0 (inf where the URDF gives none)
             self._actuation_from_generalized = selection
             self._actuators_in_joint_order = bool(np.array_equal(selection, np.eye(num_actuators)))
             self._effort_limits = np.array(limits)
@@ -116,54 +132,31 @@ def CartesianPid_(T):
 
             self.commanded_position_input = self.DeclareVectorInputPort("commanded_position", 3)
             self.commanded_velocity_input = self.DeclareVectorInputPort("commanded_velocity", 3)
-            self.estimated_state_input = self.DeclareVectorInputPort(
-                "estimated_state", num_positions + num_velocities
-            )
-            # The whole law (kinematics, torque and dz/dt) is computed once per context and
-            # read by both the output and the state update: one Python evaluation of the
-            # kinematics per derivative evaluation of the closed loop. The integral is the
-            # continuous state, or the first 3 discrete states of the sampled controller.
-            self._law_cache = self.DeclareCacheEntry(
-                description="actuation and integral rate",
-                value_producer=ValueProducer(allocate=Value[object]().Clone, calc=self._CalcLaw),
-                prerequisites_of_calc={
-                    self.xc_ticket() if self._period == 0.0 else self.xd_ticket(),
-                    *(
-                        self.input_port_ticket(port.get_index())
-                        for port in (
-                            self.commanded_position_input,
-                            self.commanded_velocity_input,
-                            self.estimated_state_input,
-                        )
-                    ),
-                },
+            self.kinematics_input = self.DeclareVectorInputPort(
+                "kinematics", kinematics_size(num_velocities)
             )
             if self._period == 0.0:
-                self.DeclareContinuousState(3)
-                self.actuation_output = self.DeclareVectorOutputPort(
-                    "actuation",
-                    num_actuators,
-                    self._CalcContinuousActuation,
-                    prerequisites_of_calc={self._law_cache.ticket()},
+                self.integral_input = self.DeclareVectorInputPort("integral", 3)
+                self.actuation_and_integral_rate_output = self.DeclareVectorOutputPort(
+                    "actuation_and_integral_rate",
+                    num_actuators + 3,
+                    self._CalcLaw,
+                    prerequisites_of_calc={self.all_input_ports_ticket()},
                 )
             else:
-                # Discrete state: [integral of ec (3), held actuation (nu)].
-                self._state_index = self.DeclareDiscreteState(3 + num_actuators)
+                # Discrete state: the integral of ec (3) and the held actuation (nu), the
+                # latter output as it is: nothing of the law runs between samples.
+                self._integral_index = self.DeclareDiscreteState(3)
+                self._held_index = self.DeclareDiscreteState(num_actuators)
                 self.DeclarePeriodicDiscreteUpdateEvent(
                     period_sec=self._period, offset_sec=0.0, update=self._DiscreteUpdate
                 )
-                self.actuation_output = self.DeclareVectorOutputPort(
-                    "actuation",
-                    num_actuators,
-                    self._CalcSampledActuation,
-                    prerequisites_of_calc={self.xd_ticket()},
-                )
+                self.actuation_output = self.DeclareStateOutputPort("actuation", self._held_index)
 
         def _construct_copy(self, other, converter=None) -> None:
             Impl._construct(
                 self,
                 other._plant.ToScalarType[T](),
-                frame_name=other._frame_name,
                 kp=other._kp,
                 kd=other._kd,
                 ki=other._ki,
@@ -185,64 +178,63 @@ def CartesianPid_(T):
             return self._effort_limits.copy()
 
         def set_integral(self, context, integral) -> None:
-            """Sets the integral of the Cartesian error (e.g. to hold the arm at t = 0)."""
-            integral = np.asarray(integral)
+            """Sets z in this system's context (the sampled law's discrete state)."""
             if self._period == 0.0:
-                context.SetContinuousState(integral)
-            else:
-                state = context.get_mutable_discrete_state(self._state_index)
-                value = np.array(state.CopyToVector())
-                value[:3] = integral
-                state.SetFromVector(value)
+                raise ValueError("the continuous law's integral is its input, not its state")
+            context.SetDiscreteState(self._integral_index, np.asarray(integral))
 
         def cartesian_error(self, context) -> np.ndarray:
             """ec = Xc - h(q) (angle wrapped) at the context's inputs."""
-            return self._law_cache.Eval(context)[2].copy()
-
-        def holding_integral(self, state, generalized_force) -> np.ndarray:
-            """The integral at which, with zero error, the PID applies `generalized_force`.
-
-            Used to start the arm at rest held against gravity: solves J^T Ki z = tau.
-            """
-            kinematics = self._kinematics
-            kinematics.set_state(state)
-            wrench = np.linalg.solve(kinematics.jacobian().T, generalized_force)
-            if np.any(self._ki == 0):
-                raise ValueError("holding the arm through the integral needs ki > 0 on all axes")
-            return wrench / self._ki
+            kinematics = self.kinematics_input.Eval(context).tolist()
+            commanded = self.commanded_position_input.Eval(context).tolist()
+            error = [commanded[i] - kinematics[i] for i in range(TASK_SIZE)]
+            error[2] = wrap_angle(error[2])
+            return np.array(error)
 
         # --- the law ----------------------------------------------------------------------
-        def _CalcLaw(self, context, value) -> None:
-            """Caches (tau, dz/dt, ec) for the context's state and inputs."""
-            kinematics = self._kinematics
-            state = self.estimated_state_input.Eval(context)
-            kinematics.set_state(state)
-            pose = kinematics.pose()
-            jacobian = kinematics.jacobian()
-            error = self.commanded_position_input.Eval(context) - pose
+        def _law(self, context, integral):
+            """(tau, dz/dt, ec) as lists at the context's inputs and the integral z.
+
+            Written per axis on Python scalars (floats, or AutoDiffXd after conversion):
+            on three-element vectors that is several times cheaper than numpy's calls.
+            """
+            kinematics = self.kinematics_input.Eval(context).tolist()  # [X; dX/dt; J]
+            commanded = self.commanded_position_input.Eval(context).tolist()
+            commanded_rate = self.commanded_velocity_input.Eval(context).tolist()
+            kp, kd, ki = self._kp_list, self._kd_list, self._ki_list
+            error = [commanded[i] - kinematics[i] for i in range(TASK_SIZE)]  # eq. 15
             error[2] = wrap_angle(error[2])
-            error_rate = (
-                self.commanded_velocity_input.Eval(context)
-                - jacobian @ state[kinematics.num_positions :]
+            wrench = [  # eq. 14
+                kp[i] * error[i]
+                + kd[i] * (commanded_rate[i] - kinematics[TASK_SIZE + i])
+                + ki[i] * integral[i]
+                for i in range(TASK_SIZE)
+            ]
+            # tau = J^T F_PID (eq. 16), with J's rows after X and dX/dt in `kinematics`.
+            force_x, force_y, force_theta = wrench
+            num_velocities = self._num_velocities
+            row_x, row_y, row_theta = (
+                2 * TASK_SIZE + axis * num_velocities for axis in range(TASK_SIZE)
             )
-            if self._period == 0.0:
-                integral = context.get_continuous_state_vector().CopyToVector()
-            else:
-                integral = context.get_discrete_state(self._state_index).CopyToVector()[:3]
-            wrench = self._kp * error + self._kd * error_rate + self._ki * integral
-            torque = jacobian.T @ wrench
+            torque = [
+                kinematics[row_x + j] * force_x
+                + kinematics[row_y + j] * force_y
+                + kinematics[row_theta + j] * force_theta
+                for j in range(num_velocities)
+            ]
             if not self._actuators_in_joint_order:
-                torque = self._actuation_from_generalized @ torque
-            values = torque.tolist() if T is float else [t.value() for t in torque]
+                torque = (self._actuation_from_generalized @ np.array(torque)).tolist()
+            values = torque if T is float else [t.value() for t in torque]
             saturated = any(
                 abs(t) > limit for t, limit in zip(values, self._effort_limits_list, strict=True)
             )
             if not saturated:
-                value.set_value((torque, error, error))
-                return
+                return torque, error, error
+            torque = np.array(torque)
             clipped = self._clip(torque)
+            jacobian = np.array(kinematics[2 * TASK_SIZE :]).reshape(TASK_SIZE, num_velocities)
             rate = self._integral_rate(error, clipped - torque, jacobian)
-            value.set_value((clipped, rate, error))
+            return clipped.tolist(), rate.tolist(), error
 
         def _clip(self, torque):
             """tau clipped to the effort limits."""
@@ -277,26 +269,153 @@ def CartesianPid_(T):
                     rate[i] = error[i] + wrench_excess[i] / (self._ki[i] * self._tracking_time[i])
             return rate
 
-        def DoCalcTimeDerivatives(self, context, derivatives) -> None:
-            if self._period > 0:  # the sampled controller has no continuous state
-                return
-            derivatives.get_mutable_vector().SetFromVector(self._law_cache.Eval(context)[1])
-
-        def _CalcContinuousActuation(self, context, output) -> None:
-            output.SetFromVector(self._law_cache.Eval(context)[0])
+        def _CalcLaw(self, context, output) -> None:
+            torque, rate, _ = self._law(context, self.integral_input.Eval(context).tolist())
+            set_output(T, output, torque + rate)
 
         def _DiscreteUpdate(self, context, discrete_state) -> None:
-            integral = context.get_discrete_state(self._state_index).CopyToVector()[:3]
-            torque, rate, _ = self._law_cache.Eval(context)
-            discrete_state.get_mutable_vector(self._state_index).SetFromVector(
-                np.concatenate([integral + self._period * rate, torque])
+            integral = context.get_discrete_state(self._integral_index).CopyToVector()
+            torque, rate, _ = self._law(context, integral.tolist())
+            discrete_state.get_mutable_vector(self._integral_index).SetFromVector(
+                integral + self._period * np.array(rate)
             )
-
-        def _CalcSampledActuation(self, context, output) -> None:
-            state = context.get_discrete_state(self._state_index).CopyToVector()
-            output.SetFromVector(state[3:])
+            discrete_state.get_mutable_vector(self._held_index).SetFromVector(torque)
 
     return Impl
 
 
-CartesianPid = CartesianPid_[None]
+CartesianPidLaw = CartesianPidLaw_[None]
+
+
+class CartesianPid(Diagram):
+    """Cartesian PID with joint torques through the Jacobian transpose (paper eq. 14-16).
+
+        ec = Xc - h(q),  dec/dt = dXc/dt - J(q) v                        (eq. 15)
+        F_PID = Kp ec + Kd dec/dt + Ki integral(ec)                      (eq. 14)
+        tau = clip(J(q)^T F_PID, -effort_limit, effort_limit)            (eq. 16)
+
+    X = (x, y, theta) of the controlled frame, its rate J v and J come from the
+    ``kinematics`` input: the output of a ``PlanarKinematics`` of the same plant and frame
+    (systems/planar_kinematics.py). The angle error is wrapped to [-pi, pi]. The commanded
+    velocity is whatever the caller wires in; the project feeds dXd/dt only, so the
+    admittance offset Xr is never differentiated (its derivative would carry the force
+    noise). Torques are clipped to the actuators' effort limits read from the plant (the
+    URDF), and mapped to the actuation vector through the plant's actuation matrix. There
+    is no gravity compensation, as in the paper: the integral term carries the arm's
+    weight. While an actuator saturates, back-calculation anti-windup pulls the integral
+    back (see ``CartesianPidLaw._integral_rate``), so a blocked arm does not wind it up.
+
+    Inside: the law (``CartesianPidLaw``, named ``law``) and, for the continuous
+    controller, ``integral`` (Drake's ``Integrator``, state z = integral(ec)) fed with dz/dt
+    through ``split`` (a ``Demultiplexer`` of the law's [tau; dz/dt]). With ``period > 0``
+    the controller is sampled: at each sample the torque is computed and held (zero-order
+    hold) and the integral advances by period * ec; nothing runs between samples.
+
+    .. pydrake_system::
+
+        name: CartesianPid
+        input_ports:
+        - commanded_position
+        - commanded_velocity
+        - kinematics
+        output_ports:
+        - actuation
+    """
+
+    def __init__(
+        self,
+        plant,
+        *,
+        frame_name: str = "fingertip",
+        kp: float | Sequence[float],
+        kd: float | Sequence[float],
+        ki: float | Sequence[float],
+        period: float = 0.0,
+    ) -> None:
+        """
+        Args:
+            plant: finalized MultibodyPlant of the arm (fully actuated).
+            frame_name: the controlled frame (the fingertip contact point).
+            kp, kd, ki: diagonal gains on (x, y, theta): N/m, N s/m, N/(m s) and the
+                rotational equivalents. kp > 0, kd >= 0, ki >= 0.
+            period: 0 for a continuous controller, otherwise its sampling period in s.
+        """
+        Diagram.__init__(self)
+        self._kinematics = PlanarFrameKinematics(plant, frame_name)
+        builder = DiagramBuilder()
+        law = builder.AddNamedSystem(
+            "law", CartesianPidLaw(plant, kp=kp, kd=kd, ki=ki, period=period)
+        )
+        self._law = law
+        self._integrator = None
+        for port in (
+            law.commanded_position_input,
+            law.commanded_velocity_input,
+            law.kinematics_input,
+        ):
+            builder.ExportInput(port, port.get_name())
+        if law.period == 0.0:
+            num_actuators = plant.num_actuated_dofs()
+            split = builder.AddNamedSystem("split", Demultiplexer([num_actuators, 3]))
+            integrator = builder.AddNamedSystem("integral", Integrator(3))
+            builder.Connect(law.actuation_and_integral_rate_output, split.get_input_port())
+            builder.Connect(split.get_output_port(1), integrator.get_input_port())
+            builder.Connect(integrator.get_output_port(), law.integral_input)
+            builder.ExportOutput(split.get_output_port(0), "actuation")
+            self._integrator = integrator
+        else:
+            builder.ExportOutput(law.actuation_output, "actuation")
+        builder.BuildInto(self)
+        self.commanded_position_input = self.GetInputPort("commanded_position")
+        self.commanded_velocity_input = self.GetInputPort("commanded_velocity")
+        self.kinematics_input = self.GetInputPort("kinematics")
+        self.actuation_output = self.GetOutputPort("actuation")
+
+    # --- accessors -----------------------------------------------------------------------
+    @property
+    def law(self) -> CartesianPidLaw:
+        return self._law
+
+    @property
+    def gains(self) -> dict[str, np.ndarray]:
+        return self._law.gains
+
+    @property
+    def period(self) -> float:
+        return self._law.period
+
+    @property
+    def effort_limits(self) -> np.ndarray:
+        return self._law.effort_limits
+
+    def set_integral(self, context, integral) -> None:
+        """Sets the integral of the Cartesian error (e.g. to hold the arm at t = 0).
+
+        Args:
+            context: this PID's context (``GetMyMutableContextFromRoot`` in a diagram).
+            integral: z, 3 values.
+        """
+        integral = np.asarray(integral, dtype=float)
+        if self._integrator is not None:
+            self._integrator.set_integral_value(
+                self.GetMutableSubsystemContext(self._integrator, context), integral
+            )
+        else:
+            self._law.set_integral(self.GetMutableSubsystemContext(self._law, context), integral)
+
+    def cartesian_error(self, context) -> np.ndarray:
+        """ec = Xc - h(q) (angle wrapped) at the inputs of this PID's context."""
+        return self._law.cartesian_error(self.GetSubsystemContext(self._law, context))
+
+    def holding_integral(self, state, generalized_force) -> np.ndarray:
+        """The integral at which, with zero error, the PID applies `generalized_force`.
+
+        Used to start the arm at rest held against gravity: solves J^T Ki z = tau.
+        """
+        kinematics = self._kinematics
+        kinematics.set_state(state)
+        wrench = np.linalg.solve(kinematics.jacobian().T, generalized_force)
+        ki = self._law.gains["ki"]
+        if np.any(ki == 0):
+            raise ValueError("holding the arm through the integral needs ki > 0 on all axes")
+        return wrench / ki

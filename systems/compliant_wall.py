@@ -15,6 +15,8 @@ from pydrake.multibody.plant import ExternallyAppliedSpatialForce_
 from pydrake.systems.framework import LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
+from admittance.systems.planar_kinematics import kinematics_size
+
 __all__ = ["CompliantWall", "CompliantWall_"]
 
 
@@ -26,8 +28,10 @@ def CompliantWall_(T):
             F = Ke(t) * max(x_tip - Xe(t), 0)      (compressive, >= 0; the wall never pulls)
 
         is applied to the fingertip point as the world force (-F, 0, 0), and output as the
-        true contact force. Ke steps at given times; Xe moves along +x at a given velocity
-        between a start and an end time:
+        true contact force. x_tip is the first entry of the ``kinematics`` input, the
+        output of a ``PlanarKinematics`` of the same plant and frame
+        (systems/planar_kinematics.py). Ke steps at given times; Xe moves along +x at a
+        given velocity between a start and an end time:
 
             Ke(t) = stiffness_i for the last step time t_i <= t (initial value before any)
             Xe(t) = position + velocity * clamp(t - motion_start, 0, motion_end - motion_start)
@@ -40,7 +44,7 @@ def CompliantWall_(T):
 
             name: CompliantWall
             input_ports:
-            - estimated_state
+            - kinematics
             output_ports:
             - applied_spatial_force
             - contact_force
@@ -103,21 +107,21 @@ def CompliantWall_(T):
             self._velocity = float(velocity)
             self._motion_start = float(motion_start)
             self._motion_end = float(motion_end)
+            self._static = self._velocity == 0.0 and not self._offsets
 
             frame = plant.GetFrameByName(frame_name)
             self._body_index = frame.body().index()
             # The contact point in the body frame (the frame's origin), fixed in the body.
             self._p_BoFo_B = frame.GetFixedPoseInBodyFrame().translation()
-            self._plant_context = plant.CreateDefaultContext()
-            self._frame = frame
-            self._world = plant.world_frame()
-            self._origin = np.zeros(3)
             self._applied = ExternallyAppliedSpatialForce_[T]()
             self._applied.body_index = self._body_index
             self._applied.p_BoBq_B = self._p_BoFo_B
+            # The spatial force of a unit contact force: (-1, 0, 0) N at the fingertip.
+            self._unit_push = SpatialForce_[T](np.array([T(0.0)] * 3 + [T(-1.0), T(0), T(0)]))
 
-            num_states = plant.num_positions() + plant.num_velocities()
-            self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", num_states)
+            self.kinematics_input = self.DeclareVectorInputPort(
+                "kinematics", kinematics_size(plant.num_velocities())
+            )
             self.applied_spatial_force_output = self.DeclareAbstractOutputPort(
                 "applied_spatial_force",
                 lambda: Value[List[ExternallyAppliedSpatialForce_[T]]](),
@@ -153,6 +157,8 @@ def CompliantWall_(T):
 
         def position_at(self, time: float) -> float:
             """Xe(t), m."""
+            if self._static:
+                return self._position
             moving = min(max(time - self._motion_start, 0.0), self._motion_end - self._motion_start)
             offset = sum(d for start, end, d in self._offsets if start <= time < end)
             return self._position + self._velocity * moving + offset
@@ -170,17 +176,7 @@ def CompliantWall_(T):
         # --- the law ----------------------------------------------------------------------
         def _force(self, context):
             """The compressive contact force F >= 0 (N) at the context's time and state."""
-            state = self.estimated_state_input.Eval(context)
-            values = state.tolist() if T is float else [x.value() for x in state]
-            if not all(map(math.isfinite, values)):
-                # Say so here, rather than let the plant abort on a non-finite state.
-                raise RuntimeError(
-                    f"CompliantWall: the arm's state is not finite at t = {context.get_time()} s"
-                )
-            self._plant.SetPositionsAndVelocities(self._plant_context, state)
-            tip = self._plant.CalcPointsPositions(
-                self._plant_context, self._frame, self._origin, self._world
-            )[0, 0]
+            tip = self.kinematics_input.Eval(context).item(0)  # x of X = (x, y, theta)
             time = context.get_time()
             if T is not float:
                 time = time.value() if hasattr(time, "value") else float(time)
@@ -190,16 +186,13 @@ def CompliantWall_(T):
             return self.stiffness_at(time) * scalar_max(penetration, T(0.0))
 
         def _CalcContactForce(self, context, output) -> None:
-            output.SetFromVector([self._force(context)])
+            output.SetAtIndex(0, self._force(context))
 
         def _CalcSpatialForce(self, context, output) -> None:
-            force = self.contact_force_output.Eval(context)[0]
+            force = self.contact_force_output.Eval(context).item(0)
             # The output keeps a copy: one applied force is reused.
             applied = self._applied
-            zero = T(0.0)
-            applied.F_Bq_W = SpatialForce_[T](
-                tau=np.array([zero, zero, zero]), f=np.array([-force, zero, zero])
-            )
+            applied.F_Bq_W = self._unit_push * force
             output.set_value([applied])
 
     return Impl

@@ -63,12 +63,12 @@ def force_error(T, desired, measured) -> list:
     ]
 
 
-def scatter(T, axes: Sequence[int], num_axes: int, values) -> np.ndarray:
-    """A num_axes vector with `values` on `axes` and zero elsewhere."""
+def scatter(T, axes: Sequence[int], num_axes: int, values) -> list:
+    """A num_axes list with `values` on `axes` and zero elsewhere."""
     full = [T(0.0)] * num_axes
     for axis, value in zip(axes, values, strict=True):
         full[axis] = value
-    return np.array(full)
+    return full
 
 
 def declare_force_ports(system, size: int, num_axes: int, calc_offset, prerequisites) -> None:

@@ -53,6 +53,7 @@ from pydrake.systems.framework import BasicVector_, LeafSystem_, ValueProducer
 from pydrake.systems.scalar_conversion import TemplateSystem
 
 from admittance.systems.force_axes import check_axes, force_error, per_axis, scatter
+from admittance.systems.ports import set_output
 
 __all__ = ["OptimalAdmittance", "OptimalAdmittance_"]
 
@@ -85,7 +86,8 @@ def OptimalAdmittance_(T):
 
         With ``period > 0`` the law is sampled as a digital controller would run it: at each
         sample k, Xr[k] = Gamma K (z[k] + alpha (E[k] - E0)) is latched (zero-order hold) and
-        z[k+1] = z[k] + period * E[k]. The output then depends on the state only.
+        z[k+1] = z[k] + period * E[k]. The output is the held Xr, a discrete state read
+        directly (a state output port): nothing of the law runs between samples.
 
         .. pydrake_system::
 
@@ -157,6 +159,11 @@ def OptimalAdmittance_(T):
             # The gains of the equivalent PI law on the force error.
             self._integral_gain = self._gamma * self._stiffness
             self._proportional_gain = self._integral_gain * self._alpha
+            # The same constants as Python floats, for the law's per-axis arithmetic.
+            self._integral_gain_list = self._integral_gain.tolist()
+            self._alpha_list = self._alpha.tolist()
+            self._max_push_list = self._max_push.tolist()
+            self._max_retract_list = self._max_retract.tolist()
 
             self.measured_force_input = self.DeclareVectorInputPort("measured_force", size)
             self.desired_force_input = self.DeclareVectorInputPort("desired_force", size)
@@ -186,16 +193,15 @@ def OptimalAdmittance_(T):
                     prerequisites_of_calc={self._law_cache.ticket()},
                 )
             else:
-                # Discrete state: [z (integral of E), Xr held].
-                self._state_index = self.DeclareDiscreteState(2 * size)
+                # Discrete state: z (the integral of E) and the held Xr (num_axes), the
+                # latter output as it is: nothing of the law runs between samples.
+                self._state_index = self.DeclareDiscreteState(size)
+                self._held_index = self.DeclareDiscreteState(self._num_axes)
                 self.DeclarePeriodicDiscreteUpdateEvent(
                     period_sec=self._period, offset_sec=0.0, update=self._DiscreteUpdate
                 )
-                self.reference_offset_output = self.DeclareVectorOutputPort(
-                    "reference_offset",
-                    self._num_axes,
-                    self._CalcSampledOutput,
-                    prerequisites_of_calc={self.xd_ticket()},
+                self.reference_offset_output = self.DeclareStateOutputPort(
+                    "reference_offset", self._held_index
                 )
 
         def _construct_copy(self, other, converter=None) -> None:
@@ -245,20 +251,23 @@ def OptimalAdmittance_(T):
             if self._period == 0.0:
                 context.SetContinuousState(integral)
             else:
-                state = context.get_mutable_discrete_state(self._state_index)
-                value = np.array(state.CopyToVector())
-                value[: len(self._axes)] = integral
-                state.SetFromVector(value)
+                context.SetDiscreteState(self._state_index, integral)
 
         # --- the law ----------------------------------------------------------------------
         def _law(self, context, integral):
-            """(Xr, dz/dt) per force axis, with the invalid-measurement and push bounds."""
+            """(Xr, dz/dt) per force axis, with the invalid-measurement and push bounds.
+
+            Written on Python scalars (floats, or AutoDiffXd after conversion), per axis.
+            """
             desired = self.desired_force_input.Eval(context)
             measured = self.measured_force_input.Eval(context)
-            initial_error = context.get_numeric_parameter(self._initial_error_index).CopyToVector()
+            initial_error = (
+                context.get_numeric_parameter(self._initial_error_index).CopyToVector().tolist()
+            )
             # A reading that is not finite (a broken sensor) gives E = 0: the integral
             # freezes and Xr holds its settled value until the sensor recovers.
             errors = force_error(T, desired, measured)
+            gains, alphas = self._integral_gain_list, self._alpha_list
             offsets, rates = [], []
             for i in range(len(self._axes)):
                 error = errors[i]
@@ -271,9 +280,7 @@ def OptimalAdmittance_(T):
                     ):
                         # The force-bound penalty: E_b = E - mu (F - Fg).
                         error = error - self._force_bound_gain * (force - guard)
-                offset = self._integral_gain[i] * (
-                    integral[i] + self._alpha[i] * (error - initial_error[i])
-                )
+                offset = gains[i] * (integral[i] + alphas[i] * (error - initial_error[i]))
                 rate = error
                 offset_value = offset if T is float else offset.value()
                 # Xr stays within [-max_retract, max_push]. Past a bound, back-calculation
@@ -282,47 +289,41 @@ def OptimalAdmittance_(T):
                 # most Gamma K tau_aw |E|, so Xr leaves the bound within a few tau_aw once
                 # the force error changes sign. (A hard freeze of dz/dt switches the
                 # right-hand side on the bound and stalls an error-controlled integrator.)
-                if offset_value > self._max_push[i]:
-                    clamped = T(self._max_push[i])
-                elif offset_value < -self._max_retract[i]:
-                    clamped = T(-self._max_retract[i])
+                if offset_value > self._max_push_list[i]:
+                    clamped = T(self._max_push_list[i])
+                elif offset_value < -self._max_retract_list[i]:
+                    clamped = T(-self._max_retract_list[i])
                 else:
                     clamped = None
                 if clamped is not None:
-                    rate = error + (clamped - offset) / (
-                        self._integral_gain[i] * self._windup_time_constant
-                    )
+                    rate = error + (clamped - offset) / (gains[i] * self._windup_time_constant)
                     offset = clamped
                 offsets.append(offset)
                 rates.append(rate)
             return offsets, rates
 
         def _CalcContinuousLaw(self, context, value) -> None:
-            integral = context.get_continuous_state_vector().CopyToVector()
+            integral = context.get_continuous_state_vector().CopyToVector().tolist()
             offsets, rates = self._law(context, integral)
             value.set_value((scatter(T, self._axes, self._num_axes, offsets), rates))
 
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
             if self._period > 0:  # the sampled law has no continuous state
                 return
-            derivatives.get_mutable_vector().SetFromVector(self._law_cache.Eval(context)[1])
+            derivatives.SetFromVector(self._law_cache.Eval(context)[1])
 
         def _CalcContinuousOutput(self, context, output) -> None:
-            output.SetFromVector(self._law_cache.Eval(context)[0])
+            set_output(T, output, self._law_cache.Eval(context)[0])
 
         def _DiscreteUpdate(self, context, discrete_state) -> None:
-            size = len(self._axes)
-            state = context.get_discrete_state(self._state_index).CopyToVector()
-            integral = state[:size]
-            offsets, rates = self._law(context, integral)
+            integral = context.get_discrete_state(self._state_index).CopyToVector()
+            offsets, rates = self._law(context, integral.tolist())
             discrete_state.get_mutable_vector(self._state_index).SetFromVector(
-                np.concatenate([integral + self._period * np.array(rates), offsets])
+                integral + self._period * np.array(rates)
             )
-
-        def _CalcSampledOutput(self, context, output) -> None:
-            size = len(self._axes)
-            state = context.get_discrete_state(self._state_index).CopyToVector()
-            output.SetFromVector(scatter(T, self._axes, self._num_axes, state[size:]))
+            discrete_state.get_mutable_vector(self._held_index).SetFromVector(
+                scatter(T, self._axes, self._num_axes, offsets)
+            )
 
     return Impl
 

@@ -63,3 +63,18 @@ def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, arguments,
     lines = completed.stderr.strip().splitlines()
     assert len(lines) == 1 and key in lines[0] and "Traceback" not in completed.stderr
     assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_bench_refuses_an_unreadable_before_file_with_one_line(tmp_path):
+    # Checked before anything runs: exit status 2, one line naming the file.
+    missing = tmp_path / "before.json"
+    completed = subprocess.run(
+        [sys.executable, "-m", "admittance.diagrams.app.cli", "bench", "--before", str(missing)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert completed.returncode == 2
+    lines = completed.stderr.strip().splitlines()
+    assert len(lines) == 1 and "--before" in lines[0] and "before.json" in lines[0]
+    assert "Traceback" not in completed.stderr and completed.stdout == ""

@@ -6,9 +6,10 @@ import math
 
 import numpy as np
 import pytest
+from pydrake.systems.framework import DiagramBuilder
 
 from admittance.systems.compliant_wall import CompliantWall
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PlanarFrameKinematics, PlanarKinematics
 
 Q = np.array([-0.45, 1.66, 0.36])  # an elbow configuration near the paper's task point
 
@@ -19,10 +20,12 @@ def _tip_x(plant, q):
     return kinematics.pose()[0]
 
 
-def _wall_context(wall, q, time=0.0):
+def _wall_context(plant, wall, q, time=0.0):
+    """The wall's context at time `time`, its kinematics input at [q; 0] from the plant."""
     context = wall.CreateDefaultContext()
     context.SetTime(time)
-    wall.estimated_state_input.FixValue(context, np.concatenate([q, np.zeros(3)]))
+    kinematics = PlanarFrameKinematics(plant, "fingertip")
+    wall.kinematics_input.FixValue(context, kinematics.kinematics(np.concatenate([q, np.zeros(3)])))
     return context
 
 
@@ -30,7 +33,7 @@ def _wall_context(wall, q, time=0.0):
 def test_force_is_unilateral_spring(arm_plant, penetration):
     tip = _tip_x(arm_plant, Q)
     wall = CompliantWall(arm_plant, position=tip - penetration, stiffness=5e4)
-    force = wall.contact_force_output.Eval(_wall_context(wall, Q))[0]
+    force = wall.contact_force_output.Eval(_wall_context(arm_plant, wall, Q))[0]
     assert force == pytest.approx(5e4 * max(penetration, 0.0), abs=1e-9)
     assert force >= 0.0  # the wall never pulls
 
@@ -38,7 +41,7 @@ def test_force_is_unilateral_spring(arm_plant, penetration):
 def test_spatial_force_pushes_the_fingertip_along_minus_x(arm_plant):
     tip = _tip_x(arm_plant, Q)
     wall = CompliantWall(arm_plant, position=tip - 1e-4, stiffness=5e4)
-    (applied,) = wall.applied_spatial_force_output.Eval(_wall_context(wall, Q))
+    (applied,) = wall.applied_spatial_force_output.Eval(_wall_context(arm_plant, wall, Q))
     link3 = arm_plant.GetBodyByName("link3")
     assert applied.body_index == link3.index()
     np.testing.assert_allclose(applied.p_BoBq_B, [0.0, -0.10, 0.0], atol=1e-12)
@@ -53,7 +56,7 @@ def test_stiffness_steps_at_the_given_times(arm_plant):
     )
     for time, stiffness in [(0.0, 5e4), (14.999, 5e4), (15.0, 1e5), (19.0, 1e5), (25.0, 2e4)]:
         assert wall.stiffness_at(time) == stiffness
-        force = wall.contact_force_output.Eval(_wall_context(wall, Q, time))[0]
+        force = wall.contact_force_output.Eval(_wall_context(arm_plant, wall, Q, time))[0]
         assert force == pytest.approx(stiffness * 1e-4, rel=1e-6)
 
 
@@ -67,19 +70,27 @@ def test_wall_moves_between_start_and_end(arm_plant):
     # A wall that recedes past the tip releases it.
     tip = _tip_x(arm_plant, Q)
     wall = CompliantWall(arm_plant, position=tip - 1e-3, stiffness=2e4, velocity=0.01)
-    assert wall.contact_force_output.Eval(_wall_context(wall, Q, 0.0))[0] > 0
-    assert wall.contact_force_output.Eval(_wall_context(wall, Q, 0.2))[0] == 0.0
+    assert wall.contact_force_output.Eval(_wall_context(arm_plant, wall, Q, 0.0))[0] > 0
+    assert wall.contact_force_output.Eval(_wall_context(arm_plant, wall, Q, 0.2))[0] == 0.0
 
 
 def test_autodiff_force_slope_is_the_stiffness(arm_plant):
     from pydrake.autodiffutils import AutoDiffXd
 
+    # The wall behind the shared kinematics, both converted: dF/dq through the plant's own
+    # AutoDiffXd kinematics.
     tip = _tip_x(arm_plant, Q)
-    wall = CompliantWall(arm_plant, position=tip - 1e-4, stiffness=5e4).ToAutoDiffXd()
-    context = wall.CreateDefaultContext()
+    builder = DiagramBuilder()
+    fingertip = builder.AddSystem(PlanarKinematics(arm_plant))
+    wall = builder.AddSystem(CompliantWall(arm_plant, position=tip - 1e-4, stiffness=5e4))
+    builder.Connect(fingertip.kinematics_output, wall.kinematics_input)
+    builder.ExportInput(fingertip.estimated_state_input, "state")
+    builder.ExportOutput(wall.contact_force_output, "force")
+    diagram = builder.Build().ToAutoDiffXd()
+    context = diagram.CreateDefaultContext()
     state = [AutoDiffXd(value, np.eye(6)[i]) for i, value in enumerate(np.r_[Q, 0, 0, 0])]
-    wall.estimated_state_input.FixValue(context, state)
-    force = wall.contact_force_output.Eval(context)[0]
+    diagram.get_input_port(0).FixValue(context, state)
+    force = diagram.get_output_port(0).Eval(context)[0]
     kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
     kinematics.set_state(np.r_[Q, 0, 0, 0])
     np.testing.assert_allclose(force.derivatives()[:3], 5e4 * kinematics.jacobian()[0], rtol=1e-9)
@@ -94,6 +105,15 @@ def test_autodiff_force_slope_is_the_stiffness(arm_plant):
         (dict(position=math.nan), "position"),
         (dict(motion_start=3.0, motion_end=1.0), "motion_end"),
         (dict(frame_name="elbow"), "elbow"),
+        (dict(stiffness=-5e4), "stiffness must be > 0"),
+        (dict(stiffness=math.inf), "stiffness must be > 0"),
+        (dict(stiffness_steps=[(1.0, 0.0)]), "stiffness_steps values must be > 0"),
+        (dict(stiffness_steps=[(math.nan, 1e4)]), "increasing"),
+        (dict(velocity=math.nan), "velocity must be finite"),
+        (dict(position_offsets=[(2.0, 2.0, 0.01)]), "position_offsets"),
+        (dict(position_offsets=[(2.0, 1.0, 0.01)]), "position_offsets"),
+        (dict(position_offsets=[(1.0, 2.0, math.nan)]), "position_offsets"),
+        (dict(position_offsets=[(math.nan, 2.0, 0.01)]), "position_offsets"),
     ],
 )
 def test_bad_arguments_name_the_argument(arm_plant, kwargs, message):
@@ -101,3 +121,80 @@ def test_bad_arguments_name_the_argument(arm_plant, kwargs, message):
     arguments.update(kwargs)
     with pytest.raises(ValueError, match=message):
         CompliantWall(arm_plant, **arguments)
+
+
+def test_soft_walls_and_steps_are_accepted(arm_plant):
+    """Ke > 0, not >= 1: a 0.5 N/m wall (a very soft foam) and a step to it are valid."""
+    tip = _tip_x(arm_plant, Q)
+    wall = CompliantWall(arm_plant, position=tip - 0.1, stiffness=0.5, stiffness_steps=[(1.0, 0.5)])
+    force = wall.contact_force_output.Eval(_wall_context(arm_plant, wall, Q))[0]
+    assert force == pytest.approx(0.05)
+
+
+def test_position_offsets_hold_during_their_interval_only(arm_plant):
+    """Xe(t) + d during [start, end): included at start, not at end (the wall is back)."""
+    wall = CompliantWall(
+        arm_plant, position=0.15, stiffness=2e4, position_offsets=[(1.0, 2.0, 0.02)]
+    )
+    for time, position in [(0.5, 0.15), (1.0, 0.17), (1.5, 0.17), (2.0, 0.15), (3.0, 0.15)]:
+        assert wall.position_at(time) == pytest.approx(position, abs=1e-15), time
+    # A static wall: only the offsets' start and end are discontinuities.
+    assert wall.discontinuity_times() == [1.0, 2.0]
+
+
+def test_a_moving_wall_in_autodiff_is_where_the_float_wall_is(arm_plant):
+    """The AutoDiffXd wall reads its schedule at the context's time as a float: the same
+    force as the float wall at t = 1 s, halfway through a motion."""
+    from pydrake.autodiffutils import AutoDiffXd
+
+    tip = _tip_x(arm_plant, Q)
+    arguments = dict(
+        position=tip - 2e-3, stiffness=5e4, velocity=1e-3, motion_start=0.5, motion_end=1.5
+    )
+    wall = CompliantWall(arm_plant, **arguments)
+    expected = wall.contact_force_output.Eval(_wall_context(arm_plant, wall, Q, 1.0))[0]
+    assert expected == pytest.approx(5e4 * (2e-3 - 0.5e-3))
+    wall_ad = wall.ToAutoDiffXd()
+    context = wall_ad.CreateDefaultContext()
+    context.SetTime(AutoDiffXd(1.0))
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip").kinematics(np.r_[Q, 0, 0, 0])
+    wall_ad.kinematics_input.FixValue(context, [AutoDiffXd(k) for k in kinematics])
+    force = wall_ad.contact_force_output.Eval(context)[0]
+    assert force.value() == pytest.approx(expected, rel=1e-12)
+
+
+def test_a_wall_that_starts_and_stops_at_once_stays_put(arm_plant):
+    """motion_end = motion_start is allowed: the wall never moves."""
+    wall = CompliantWall(
+        arm_plant, position=0.15, stiffness=2e4, velocity=0.01, motion_start=2.0, motion_end=2.0
+    )
+    assert wall.position_at(5.0) == pytest.approx(0.15, abs=1e-15)
+
+
+def test_an_approaching_wall_reports_when_it_starts_and_stops(arm_plant):
+    """A negative velocity (a wall coming at the arm) moves it too: its start and end are
+    discontinuities for the integrator, as for a receding wall."""
+    wall = CompliantWall(
+        arm_plant, position=0.15, stiffness=2e4, velocity=-0.05, motion_start=2.5, motion_end=2.7
+    )
+    assert wall.discontinuity_times() == [2.5, 2.7]
+    assert wall.position_at(3.0) == pytest.approx(0.14, abs=1e-15)
+
+
+def test_autodiff_wall_does_not_pull_when_out_of_contact(arm_plant):
+    """1 mm short of the wall: zero force and zero slope in AutoDiffXd too (the wall is
+    unilateral whatever the scalar type)."""
+    from pydrake.autodiffutils import AutoDiffXd
+
+    tip = _tip_x(arm_plant, Q)
+    wall = CompliantWall(arm_plant, position=tip + 1e-3, stiffness=5e4).ToAutoDiffXd()
+    context = wall.CreateDefaultContext()
+    # Every entry of the kinematics input (X, J v, J) with a derivative of its own.
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip").kinematics(np.r_[Q, 0, 0, 0])
+    size = len(kinematics)
+    wall.kinematics_input.FixValue(
+        context, [AutoDiffXd(k, np.eye(size)[i]) for i, k in enumerate(kinematics)]
+    )
+    force = wall.contact_force_output.Eval(context)[0]
+    assert force.value() == 0.0
+    np.testing.assert_array_equal(force.derivatives(), 0.0)

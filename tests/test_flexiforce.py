@@ -105,8 +105,26 @@ def test_saturation_reads_saturation_force(force):
     assert _measured(sensor, context) == pytest.approx(110.0, abs=1e-9)
 
 
-def test_tension_reads_as_unloaded():
+def test_tension_drives_the_sensor_reading_to_zero_not_below():
+    """A pulling (negative) contact force reads as no force: the filter is driven to the
+    unloaded output V_offset, so the reading decays to 0 N and never goes negative."""
     sensor = FlexiForceSensor()
+    # Unloaded and pulled at 20 N: the state stays at V_offset (dV/dt = 0), the reading 0 N.
+    context = _context(sensor, voltage=V_OFFSET, force=-20.0)
+    assert _xdot(sensor, context) == 0.0
+    assert _measured(sensor, context) == pytest.approx(0.0, abs=1e-12)
+    # Loaded (10 N on the filter state) and then pulled: dV/dt = (V_offset - V) / tau, the
+    # decay towards V_offset, not towards V_offset + k (-20 N) = -0.896 V.
+    loaded = V_OFFSET + GAIN * 10.0
+    context = _context(sensor, voltage=loaded, force=-20.0)
+    assert _xdot(sensor, context) == pytest.approx((V_OFFSET - loaded) * POLE, rel=1e-12)
+    # Ten time constants later the reading is 10 N e^-10 = 0.45 mN above zero, not below.
+    simulator = Simulator(sensor, context)
+    simulator.get_mutable_integrator().set_target_accuracy(1e-9)
+    simulator.AdvanceTo(10 * TAU)
+    reading = _measured(sensor, context)
+    assert reading == pytest.approx(10.0 * math.exp(-10.0), rel=1e-3)
+    # The analysis helper describes the same law.
     assert sensor.static_output_voltage(-20.0) == pytest.approx(V_OFFSET, abs=1e-15)
 
 
@@ -285,8 +303,101 @@ def test_linearize():
         ("linearity_error", -0.3),
         ("full_scale_force", 0.0),
         ("full_scale_force", "a lot"),
+        ("full_scale_force", None),
+        ("unloaded_conductance", float("inf")),
+        ("rail_voltage", V_OFFSET),
+        ("feedback_resistance", -150e3),
+        ("full_scale_force", -100.0),
+        # Just past the datasheet's 5 MOhm: 1 / 4.9999999 MOhm = 2.00000004e-7 S.
+        ("unloaded_conductance", 1.0 / 4.9999999e6),
     ],
 )
 def test_bad_arguments_raise(argument, value):
     with pytest.raises(ValueError, match=argument):
         FlexiForceSensor(**{argument: value})
+
+
+@pytest.mark.parametrize(
+    "argument, value",
+    [
+        ("unloaded_conductance", 0.0),
+        ("unloaded_conductance", 2e-7),
+        ("linearity_error", 0.249),
+        ("linearity_error", -0.249),
+        ("rail_voltage", 0.01),
+        ("conductance_per_newton", 1e-9),
+        ("feedback_resistance", 0.5),
+        ("filter_cutoff_hz", 0.5),
+        ("full_scale_force", 0.5),
+    ],
+)
+def test_arguments_at_the_edge_of_their_range_are_accepted(argument, value):
+    """The allowed ranges include their closed ends (0 and 2e-7 S for G0) and stop just
+    inside their open ones (|e| < 0.25, V_rail > V_offset, the other constants > 0)."""
+    sensor = FlexiForceSensor(**{argument: value})
+    context = _context(sensor, voltage=sensor.unloaded_voltage)
+    assert _measured(sensor, context) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_bow_vanishes_above_full_scale_in_the_system_and_the_helper():
+    """u = min(F / F_fs, 1): above full scale (here 105 N, below saturation) the bow is zero,
+    so the reading is exact again, in the sensor's own law and in the analysis helper."""
+    sensor = FlexiForceSensor(linearity_error=0.03)
+    voltage = sensor.static_output_voltage(105.0)
+    assert voltage == pytest.approx(V_OFFSET + GAIN * 105.0, rel=1e-12)
+    context = _context(sensor, voltage=voltage, force=105.0)
+    assert _xdot(sensor, context) == pytest.approx(0.0, abs=1e-6)
+    assert _measured(sensor, context) == pytest.approx(105.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("error", [0.0025, -0.0025, -0.03])
+def test_the_bow_bends_the_sensor_law_and_the_helper_alike(error):
+    """b = 4 e F_fs: +-1 N for e = +-0.0025 (a reading off by +-0.25 N at 50 N) and -12 N for
+    a sagging e = -0.03 (-3 N at 50 N), in the filter's input and in the helper."""
+    sensor = FlexiForceSensor(linearity_error=error)
+    bowed = 50.0 + error * 100.0
+    assert sensor.calibrated_force(sensor.static_output_voltage(50.0)) == pytest.approx(bowed)
+    context = _context(sensor, voltage=V_OFFSET, force=50.0)
+    assert _xdot(sensor, context) == pytest.approx(GAIN * bowed * POLE, rel=1e-12)
+
+
+def test_arguments_are_keyword_only():
+    """Nine numbers of different units: a positional call could swap them unnoticed."""
+    with pytest.raises(TypeError):
+        FlexiForceSensor("flexiforce", 6.0e-7)
+
+
+def test_the_ideal_kind_has_no_state_to_integrate():
+    # The kind is compared by value: a string built at run time (from a YAML file, say).
+    sensor = FlexiForceSensor(kind="".join(["id", "eal"]))
+    context = _context(sensor, force=3.0)
+    assert sensor.EvalTimeDerivatives(context).size() == 0
+
+
+def test_a_bad_linearity_error_message_gives_the_open_range():
+    with pytest.raises(ValueError, match=r"linearity_error must be in \(-0.25, 0.25\); got 0.3"):
+        FlexiForceSensor(linearity_error=0.3)
+
+
+def test_the_helpers_return_a_float_for_a_float_and_an_array_for_an_array():
+    sensor = FlexiForceSensor()
+    assert isinstance(sensor.static_output_voltage(5.0), float)
+    assert isinstance(sensor.calibrated_force(0.5), float)
+    np.testing.assert_allclose(
+        sensor.static_output_voltage(np.array([0.0, 10.0])), [V_OFFSET, V_OFFSET + GAIN * 10.0]
+    )
+    np.testing.assert_allclose(
+        sensor.calibrated_force(np.array([V_OFFSET, 1.0])), [0.0, (1.0 - V_OFFSET) / GAIN]
+    )
+
+
+def test_autodiff_reading_is_the_calibrated_voltage_plus_the_noise():
+    """The generic output law: dF_meas/dV = 1 / k and dF_meas/dn = 1."""
+    sensor_ad = FlexiForceSensor().ToAutoDiffXd()
+    context = sensor_ad.CreateDefaultContext()
+    context.SetContinuousState([AutoDiffXd(2.0, [1.0, 0.0])])
+    sensor_ad.contact_force_input.FixValue(context, [AutoDiffXd(10.0, [0.0, 0.0])])
+    sensor_ad.noise_input.FixValue(context, [AutoDiffXd(0.7, [0.0, 1.0])])
+    reading = sensor_ad.measured_force_output.Eval(context)[0]
+    assert reading.value() == pytest.approx((2.0 - V_OFFSET) / GAIN + 0.7, rel=1e-12)
+    np.testing.assert_allclose(reading.derivatives(), [1.0 / GAIN, 1.0], rtol=1e-12)

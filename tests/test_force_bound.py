@@ -30,22 +30,28 @@ def _peak_after_transient(name: str, overrides: list[str]) -> float:
 
 def test_the_bound_holds_where_the_paper_s_law_alone_exceeds_it():
     """A wall approaching at 50 mm/s: the paper's law settles Fr + v / (Gamma K) = 9.2 N
-    plus the damping transient, 10.2 N; with the bound the peak stays under 10 N."""
+    plus the damping transient (measured peak 10.2 N, over Fmax); with the bound the force
+    settles at Fg + (Fr - Fg + v / (Gamma K)) / (1 + mu) = 7.8 N (systems/
+    optimal_admittance.py) plus the transient (measured 9.1 N, under Fmax)."""
     point = ["wall.velocity=-0.05", "wall.stiffness=2e4", *APPROACH]
     free = _peak_after_transient("paper_moving_wall", point)
     bounded = _peak_after_transient(
         "paper_moving_wall", [*point, f"admittance.max_force={MAX_FORCE}"]
     )
     assert bounded < MAX_FORCE
-    assert free > bounded + 0.5  # the bound does the work, measured: 10.2 N against 9.1 N
+    assert free > MAX_FORCE  # the same run without the bound exceeds it
 
 
-def test_the_bound_holds_after_an_unexpected_obstacle():
-    peak = _peak_after_transient(
-        "unexpected_obstacle",
-        ["trajectory.frequency=0.4", "duration=4", f"admittance.max_force={MAX_FORCE}"],
+def test_the_bound_holds_after_an_unexpected_obstacle_the_paper_s_law_presses_past():
+    """The obstacle met at the plan's speed: the paper's law peaks at 10.5 N after the
+    contact transient (measured), over Fmax; with the bound 9.7 N (measured), under it."""
+    point = ["trajectory.frequency=0.4", "duration=4"]
+    free = _peak_after_transient("unexpected_obstacle", point)
+    bounded = _peak_after_transient(
+        "unexpected_obstacle", [*point, f"admittance.max_force={MAX_FORCE}"]
     )
-    assert peak < MAX_FORCE
+    assert bounded < MAX_FORCE
+    assert free > MAX_FORCE  # the same run without the bound exceeds it
 
 
 @pytest.mark.slow

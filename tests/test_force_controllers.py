@@ -8,6 +8,7 @@ import re
 
 import numpy as np
 import pytest
+from pydrake.autodiffutils import AutoDiffXd
 
 from admittance.diagrams.force_controllers import baseline_gains
 from admittance.diagrams.scenario import CONTROLLER_KINDS, ScenarioError, load_scenario
@@ -142,3 +143,139 @@ def test_every_controller_kind_builds_a_loop():
         assert (loop.admittance is None) == (kind == "pid_only")
         if loop.admittance is not None:
             assert loop.admittance.get_name() == kind
+
+
+def _fix_axes(block, measured, desired, state):
+    context = block.CreateDefaultContext()
+    block.measured_force_input.FixValue(context, measured)
+    block.desired_force_input.FixValue(context, desired)
+    context.SetContinuousState(state)
+    return context
+
+
+def test_classical_admittance_on_two_axes_keeps_each_axis_its_own_gains():
+    """Force on x and theta (axes 0 and 2), different M, D, Ks each; by hand, per axis:
+    a = (E - D v - Ks x) / M, with state (x0, x2, v0, v2)."""
+    block = ClassicalAdmittance(
+        mass=[0.5, 2.0], damping=[40.0, 10.0], stiffness=[100.0, 0.0], force_axes=[0, 2]
+    )
+    assert block.gains["mass"].tolist() == [0.5, 2.0]
+    context = _fix_axes(block, [3.0, 1.0], [5.0, 0.0], [0.002, 0.01, 0.1, -0.2])
+    # Axis 0: E = 2, (2 - 4 - 0.2) / 0.5 = -4.4. Axis 2: E = -1, (-1 + 2 - 0) / 2 = 0.5.
+    np.testing.assert_allclose(
+        block.EvalTimeDerivatives(context).CopyToVector(), [0.1, -0.2, -4.4, 0.5]
+    )
+    np.testing.assert_allclose(block.reference_offset_output.Eval(context), [0.002, 0.0, 0.01])
+
+
+def test_adaptive_impedance_on_three_axes_keeps_each_axis_its_own_gains():
+    """State (x0, x1, x2, v0, v1, v2, Phi0, Phi1, Phi2): m a = E + b Phi - b v,
+    Phi' = rate E / b, each axis with its own m, b and rate."""
+    block = AdaptiveImpedance(
+        mass=[0.5, 2.0, 1.0],
+        damping=[40.0, 10.0, 20.0],
+        adaptation_rate=[10.0, 5.0, 2.0],
+        force_axes=[0, 1, 2],
+    )
+    assert block.gains["adaptation_rate"].tolist() == [10.0, 5.0, 2.0]
+    state = [0.001, 0.002, 0.003, 0.01, -0.1, 0.0, 0.02, 0.3, 0.0]
+    context = _fix_axes(block, [3.0, 1.0, 4.0], [5.0, 0.0, 0.0], state)
+    # Axis 0: (2 + 0.8 - 0.4) / 0.5 = 4.8, Phi' = 10 * 2 / 40 = 0.5.
+    # Axis 1: (-1 + 3 + 1) / 2 = 1.5, Phi' = 5 * -1 / 10 = -0.5.
+    # Axis 2: (-4 + 0 - 0) / 1 = -4, Phi' = 2 * -4 / 20 = -0.4.
+    np.testing.assert_allclose(
+        block.EvalTimeDerivatives(context).CopyToVector(),
+        [0.01, -0.1, 0.0, 4.8, 1.5, -4.0, 0.5, -0.5, -0.4],
+    )
+    np.testing.assert_allclose(block.reference_offset_output.Eval(context), [0.001, 0.002, 0.003])
+
+
+def test_classical_admittance_is_a_mass_damper_by_default():
+    """Without stiffness: Ks = 0, so the offset itself does not pull back (a = (E - D v) / M)."""
+    block = ClassicalAdmittance(mass=0.5, damping=40.0)
+    context = _fix(block, measured=3.0, desired=5.0, state=[0.002, 0.1])
+    np.testing.assert_allclose(block.EvalTimeDerivatives(context).CopyToVector(), [0.1, -4.0])
+
+
+def test_fixed_reference_on_two_axes_subtracts_each_axis_own_desired_position():
+    """force_axes [2, 0]: entry i of the estimates belongs to axis force_axes[i]."""
+    block = FixedReference(wall_position=[0.5, 0.201], wall_stiffness=[1e3, 5e4], force_axes=[2, 0])
+    context = block.CreateDefaultContext()
+    block.measured_force_input.FixValue(context, [0.0, 0.0])
+    block.desired_force_input.FixValue(context, [2.0, 5.0])
+    block.desired_position_input.FixValue(context, [0.2, -0.25, 0.4])
+    # theta: 0.5 + 2 / 1e3 - 0.4 = 0.102; x: 0.201 + 1e-4 - 0.2 = 0.0011.
+    np.testing.assert_allclose(
+        block.reference_offset_output.Eval(context), [0.0011, 0.0, 0.102], atol=1e-15
+    )
+
+
+@pytest.mark.parametrize(
+    "make, state",
+    [
+        (lambda: ClassicalAdmittance(mass=0.5, damping=40.0, stiffness=100.0), [0.002, 0.1]),
+        (
+            lambda: AdaptiveImpedance(mass=0.5, damping=40.0, adaptation_rate=10.0),
+            [0.001, 0.01, 0.02],
+        ),
+    ],
+    ids=["classical", "adaptive"],
+)
+def test_baselines_converted_to_autodiff_keep_their_law(make, state):
+    """The AutoDiffXd copy (what Linearize uses) computes the same derivatives, and its
+    derivative with respect to the measured force is the law's: -1 / M on the acceleration."""
+    block = make()
+    context = _fix(block, measured=3.0, desired=5.0, state=state)
+    expected = block.EvalTimeDerivatives(context).CopyToVector()
+    block_ad = block.ToAutoDiffXd()
+    context_ad = block_ad.CreateDefaultContext()
+    block_ad.measured_force_input.FixValue(context_ad, [AutoDiffXd(3.0, [1.0])])
+    block_ad.desired_force_input.FixValue(context_ad, [AutoDiffXd(5.0, [0.0])])
+    context_ad.SetContinuousState([AutoDiffXd(x, [0.0]) for x in state])
+    derivatives = block_ad.EvalTimeDerivatives(context_ad).CopyToVector()
+    np.testing.assert_allclose([d.value() for d in derivatives], expected, rtol=1e-12)
+    assert derivatives[1].derivatives()[0] == pytest.approx(-1.0 / 0.5)
+
+
+def test_fixed_reference_converted_to_autodiff_keeps_its_law():
+    block = FixedReference(wall_position=0.201, wall_stiffness=5e4).ToAutoDiffXd()
+    context = block.CreateDefaultContext()
+    block.measured_force_input.FixValue(context, [AutoDiffXd(0.0)])
+    block.desired_force_input.FixValue(context, [AutoDiffXd(5.0, [1.0])])
+    block.desired_position_input.FixValue(context, [AutoDiffXd(v, [0.0]) for v in (0.2, 0, 0)])
+    (offset, _, _) = block.reference_offset_output.Eval(context)
+    assert offset.value() == pytest.approx(0.0011, abs=1e-15)
+    assert offset.derivatives()[0] == pytest.approx(1.0 / 5e4)  # dXr/dFr = 1 / Ke_est
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: ClassicalAdmittance(0.5, 40.0),
+        lambda: AdaptiveImpedance(0.5, 40.0, 10.0),
+        lambda: FixedReference(0.2, 5e4),
+    ],
+    ids=["classical", "adaptive", "fixed"],
+)
+def test_baseline_arguments_are_keyword_only(make):
+    with pytest.raises(TypeError):
+        make()
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda: AdaptiveImpedance(mass=0.0, damping=1.0, adaptation_rate=1.0), "mass must be > 0"),
+        (lambda: AdaptiveImpedance(mass=1.0, damping=0.0, adaptation_rate=1.0), "damping"),
+        (
+            lambda: AdaptiveImpedance(mass=1.0, damping=1.0, adaptation_rate=0.0),
+            "adaptation_rate must be > 0",
+        ),
+        (lambda: FixedReference(wall_position=math.nan, wall_stiffness=5e4), "wall_position"),
+        (lambda: FixedReference(wall_position=0.2, wall_stiffness=0.0), "wall_stiffness"),
+        (lambda: FixedReference(wall_position=0.2, wall_stiffness=5e4, force_axes=[3]), "axes"),
+    ],
+)
+def test_baseline_arguments_are_checked(make, message):
+    with pytest.raises(ValueError, match=message):
+        make()

@@ -3,9 +3,11 @@ its sampled version, against hand-computed values."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
-from pydrake.autodiffutils import AutoDiffXd, InitializeAutoDiff
+from pydrake.autodiffutils import AutoDiffXd
 from pydrake.systems.analysis import Simulator
 
 from admittance.systems.optimal_admittance import OptimalAdmittance
@@ -28,6 +30,12 @@ def _context(block, measured, desired, *, integral=0.0, initial_error=None):
         context, [desired - measured if initial_error is None else initial_error]
     )
     return context
+
+
+def _sampled_update(block, context):
+    """The sampled block's next (integral, held offset): its two discrete state groups."""
+    updated = block.EvalUniquePeriodicDiscreteUpdate(context)
+    return (updated.get_vector(group).CopyToVector() for group in (0, 1))
 
 
 def test_output_is_the_derivative_free_law():
@@ -65,7 +73,6 @@ def test_gradient_flow_rate_matches_eq_10_prime():
     measured = 3.0
     rate = 4.0  # dF/dt, so dE/dt = -4
     error = 5.0 - measured
-    (z,) = InitializeAutoDiff([[0.4]]).flatten()
     z = AutoDiffXd(0.4, [error])
     block.measured_force_input.FixValue(context, [AutoDiffXd(measured, [rate])])
     block.desired_force_input.FixValue(context, [AutoDiffXd(5.0, [0.0])])
@@ -74,6 +81,20 @@ def test_gradient_flow_rate_matches_eq_10_prime():
     offset = block.reference_offset_output.Eval(context)[0]
     expected_rate = GAMMA * K * (error + ALPHA * (-rate))
     assert offset.derivatives()[0] == pytest.approx(expected_rate, rel=1e-12)
+
+
+def test_default_block_controls_x_of_a_planar_pose():
+    """Without force_axes and num_axes: the x axis of (x, y, theta), continuous."""
+    block = OptimalAdmittance(gamma=GAMMA, alpha=ALPHA, stiffness=K)
+    assert block.force_axes == [0] and block.period == 0.0
+    context = _context(block, measured=3.0, desired=5.0, integral=0.4, initial_error=5.0)
+    np.testing.assert_allclose(block.reference_offset_output.Eval(context), [0.0025, 0.0, 0.0])
+
+
+def test_arguments_are_keyword_only():
+    """Gamma, alpha and K are all numbers: a positional call could swap them unnoticed."""
+    with pytest.raises(TypeError):
+        OptimalAdmittance(GAMMA, ALPHA, K)
 
 
 def test_equivalent_pi_gains():
@@ -91,15 +112,58 @@ def test_only_force_axes_move():
 def test_sampled_law_latches_and_integrates():
     period = 0.001
     block = _block(period=period)
-    context = _context(block, measured=4.0, desired=5.0, integral=0.2, initial_error=5.0)
+    assert block.period == period
+    context = _context(block, measured=3.0, desired=5.0, integral=0.2, initial_error=5.0)
     # Output is the held value (0 at start) and does not feed through the force.
     assert block.reference_offset_output.Eval(context)[0] == 0.0
     assert not block.HasDirectFeedthrough(
         block.measured_force_input.get_index(), block.reference_offset_output.get_index()
     )
-    updated = block.EvalUniquePeriodicDiscreteUpdate(context).get_vector().CopyToVector()
-    # z[k+1] = 0.2 + 0.001 * 1; Xr[k] = 0.025 * (0.2 + 0.1 * (1 - 5)) = -0.005.
-    np.testing.assert_allclose(updated, [0.201, -0.005], atol=1e-15)
+    # No continuous state: nothing to integrate between samples.
+    assert block.EvalTimeDerivatives(context).size() == 0
+    integral, held = _sampled_update(block, context)
+    # E = 2 N: z[k+1] = 0.2 + 0.001 * 2; Xr[k] = 0.025 * (0.2 + 0.1 * (2 - 5)) = -0.0025 on
+    # axis x, held for the output port (the other axes hold 0).
+    np.testing.assert_allclose(integral, [0.202], atol=1e-15)
+    np.testing.assert_allclose(held, [-0.0025, 0.0, 0.0], atol=1e-15)
+
+
+def test_sampled_law_latches_its_first_sample_at_t_0():
+    """The first sample is taken at t = 0 (offset 0), then every period: after 1.5 periods
+    the held Xr is the second sample's, Gamma K (z0 + h E + alpha (E - E0)). (30 ms: 1 s is
+    no whole number of periods, so no other offset gives the same sample times.)"""
+    period = 0.03
+    block = _block(period=period)
+    context = _context(block, measured=3.0, desired=5.0, integral=0.2, initial_error=5.0)
+    Simulator(block, context).AdvanceTo(1.5 * period)
+    expected = GAMMA * K * (0.2 + period * 2.0 + ALPHA * (2.0 - 5.0))
+    assert block.reference_offset_output.Eval(context)[0] == pytest.approx(expected, rel=1e-12)
+
+
+def test_sampled_law_on_three_axes_keeps_one_integral_and_one_held_offset_each():
+    block = _block(
+        force_axes=[0, 1, 2], gamma=[GAMMA] * 3, alpha=[ALPHA] * 3, stiffness=[K] * 3, period=0.001
+    )
+    context = block.CreateDefaultContext()
+    block.measured_force_input.FixValue(context, [3.0, 4.0, 6.0])
+    block.desired_force_input.FixValue(context, [5.0, 5.0, 5.0])
+    integral, held = _sampled_update(block, context)
+    errors = np.array([2.0, 1.0, -1.0])
+    np.testing.assert_allclose(integral, 0.001 * errors)
+    np.testing.assert_allclose(held, GAMMA * K * ALPHA * errors)
+
+
+def test_sampled_anti_windup_time_constant_is_five_periods():
+    """Past max_push the sampled integral is pulled back at (Xr_clamped - Xr) / (Gamma K
+    tau_aw) with tau_aw = max(10 ms, 5 periods): 50 ms at a 10 ms period."""
+    period = 0.01
+    block = _block(period=period, max_push=0.01)
+    context = _context(block, measured=1.0, desired=5.0, integral=1.0, initial_error=4.0)
+    integral, held = _sampled_update(block, context)
+    unclamped = GAMMA * K * 1.0  # z = 1, E = E0: 0.025 m, past the 0.01 m bound
+    rate = 4.0 + (0.01 - unclamped) / (GAMMA * K * 5 * period)
+    np.testing.assert_allclose(integral, [1.0 + period * rate], rtol=1e-12)
+    np.testing.assert_allclose(held, [0.01, 0.0, 0.0], rtol=1e-12)
 
 
 def test_continuous_law_feeds_through_the_force():
@@ -127,7 +191,17 @@ def test_autodiff_gain_of_output_to_force():
         (dict(stiffness=0.0), "stiffness"),
         (dict(force_axes=[3]), "force_axes"),
         (dict(force_axes=[]), "force_axes"),
+        (dict(force_axes=[0, 0]), "force_axes must be distinct"),
+        (dict(force_axes=[-1]), "force_axes must be distinct"),
+        (dict(force_axes=[4]), r"force_axes must be distinct indices in \[0, 2\], got \[4\]"),
+        (dict(gamma=math.inf), "gamma must be finite"),
+        (dict(alpha=math.nan), "alpha must be finite"),
         (dict(period=-1.0), "period"),
+        (dict(max_push=0.0), "max_push must be > 0"),
+        (dict(max_push=-0.01), "max_push must be > 0"),
+        (dict(max_push=math.nan), "max_push must be > 0"),
+        (dict(max_retract=0.0), "max_retract must be > 0"),
+        (dict(max_retract=math.nan), "max_retract must be > 0"),
     ],
 )
 def test_bad_arguments_name_the_argument(kwargs, message):
@@ -149,22 +223,53 @@ def test_force_bound_leaves_the_law_alone_below_the_guard_level():
     np.testing.assert_allclose(bounded.EvalTimeDerivatives(contexts[0]).CopyToVector(), [-2.0])
 
 
-def test_force_bound_penalises_the_force_above_the_guard_level():
-    """At F = 12 N: E_b = E - mu (F - Fg) = -7 - 4 (12 - 7.5) = -25 N, in both paths."""
-    block = _block(max_force=10.0, force_bound_gain=4.0)
-    context = _context(block, measured=12.0, desired=5.0, integral=0.3, initial_error=5.0)
-    np.testing.assert_allclose(block.EvalTimeDerivatives(context).CopyToVector(), [-25.0])
+@pytest.mark.parametrize("measured", [12.0, 20.0])
+def test_force_bound_penalises_the_force_above_the_guard_level(measured):
+    """Fmax = 10 N, Fr = 5 N, the default mu = 4: E_b = E - mu (F - Fg), Fg = 7.5 N, in both
+    paths (at 12 N: -7 - 4 * 4.5 = -25 N; at 20 N: -15 - 4 * 12.5 = -65 N)."""
+    block = _block(max_force=10.0)
+    context = _context(block, measured=measured, desired=5.0, integral=0.3, initial_error=5.0)
+    bounded_error = (5.0 - measured) - 4.0 * (measured - 7.5)
+    np.testing.assert_allclose(block.EvalTimeDerivatives(context).CopyToVector(), [bounded_error])
     offset = block.reference_offset_output.Eval(context)[0]
-    assert offset == pytest.approx(GAMMA * K * (0.3 + ALPHA * (-25.0 - 5.0)), rel=1e-12)
+    assert offset == pytest.approx(GAMMA * K * (0.3 + ALPHA * (bounded_error - 5.0)), rel=1e-12)
 
 
 @pytest.mark.parametrize(
     "kwargs, message",
     [
         (dict(max_force=0.0), "max_force must be > 0"),
+        (dict(max_force=-1.0), "max_force must be > 0"),
+        (dict(max_force=math.nan), "max_force must be > 0"),
+        (dict(force_bound_gain=0.0), "force_bound_gain must be > 0"),
         (dict(force_bound_gain=-1.0), "force_bound_gain must be > 0"),
+        (dict(force_bound_gain=math.inf), "force_bound_gain must be > 0"),
     ],
 )
 def test_force_bound_arguments_are_checked(kwargs, message):
     with pytest.raises(ValueError, match=message):
         _block(**kwargs)
+
+
+def test_small_positive_force_bound_arguments_are_accepted():
+    """The checks are > 0, not >= 1: a 0.5 N bound and a gain of 0.5 are valid."""
+    block = _block(max_force=0.5, force_bound_gain=0.5)
+    context = _context(block, measured=1.0, desired=0.25, integral=0.0, initial_error=0.0)
+    # Fg = 0.375 N: E_b = -0.75 - 0.5 (1 - 0.375) = -1.0625 N.
+    np.testing.assert_allclose(block.EvalTimeDerivatives(context).CopyToVector(), [-1.0625])
+
+
+def test_autodiff_law_takes_a_broken_reading_as_zero_error():
+    """NaN from the sensor in the AutoDiffXd law (what Linearize uses): E = 0, with no
+    derivative, so the integral freezes and Xr holds, as in the float law."""
+    block = _block().ToAutoDiffXd()
+    context = block.CreateDefaultContext()
+    block.measured_force_input.FixValue(context, [AutoDiffXd(math.nan, [1.0])])
+    block.desired_force_input.FixValue(context, [AutoDiffXd(5.0, [0.0])])
+    block.set_initial_force_error(context, [AutoDiffXd(0.0, [0.0])])
+    context.SetContinuousState([AutoDiffXd(0.4, [0.0])])
+    (rate,) = block.EvalTimeDerivatives(context).CopyToVector()
+    assert rate.value() == 0.0
+    np.testing.assert_array_equal(rate.derivatives(), 0.0)
+    offset = block.reference_offset_output.Eval(context)[0]
+    assert offset.value() == pytest.approx(GAMMA * K * 0.4, rel=1e-12)

@@ -6,6 +6,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import time
 
 import pytest
 
@@ -80,26 +81,48 @@ def test_a_killed_writer_leaves_the_previous_result_and_a_marked_staging_folder(
     assert json.loads((out / "metrics.json").read_text()) == {"next": True}
 
 
+# The command line, with the simulator's monitor wrapped to write a marker file once the
+# simulated time passes 0.5 s: the signal that the run is under way.
+_MARKED_MAIN = textwrap.dedent(
+    """
+    import pathlib, sys
+    from pydrake.systems.analysis import Simulator
+    from admittance.diagrams.app.cli import main
+
+    marker = pathlib.Path(sys.argv[1])
+    set_monitor = Simulator.set_monitor
+
+    def marked_set_monitor(simulator, monitor):
+        def marked(root_context):
+            if root_context.get_time() > 0.5 and not marker.exists():
+                marker.write_text(str(root_context.get_time()))
+            return monitor(root_context)
+
+        return set_monitor(simulator, marked)
+
+    Simulator.set_monitor = marked_set_monitor
+    sys.exit(main(sys.argv[2:]))
+    """
+)
+
+
 def test_a_killed_simulation_writes_nothing(tmp_path):
     """Killed mid-simulation (before any write), the command leaves no result folder."""
-    out = tmp_path / "run"
-    command = [
-        sys.executable,
-        "-c",
-        "import sys; from admittance.diagrams.app.cli import main; sys.exit(main(sys.argv[1:]))",
-        "simulate",
-        "paper_moving_wall",
-        "--set",
-        "duration=300",
-        "--out",
-        str(out),
-    ]
+    out = tmp_path / "results" / "run"
+    marker = tmp_path / "simulating"
+    command = [sys.executable, "-c", _MARKED_MAIN, str(marker), "simulate", "paper_moving_wall"]
+    command += ["--set", "duration=300", "--out", str(out)]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
-        # 300 s of the FlexiForce loop take over a minute to simulate (about 3 s per 10 s).
-        with pytest.raises(subprocess.TimeoutExpired):
-            process.wait(timeout=4.0)
+        # 0.5 s of the FlexiForce loop is under way; the other 299.5 s take minutes.
+        deadline = time.monotonic() + 120.0
+        while not marker.exists():
+            assert process.poll() is None, process.communicate()
+            assert time.monotonic() < deadline, "the simulation did not start in 120 s"
+            time.sleep(0.01)
     finally:
         os.kill(process.pid, signal.SIGKILL)
         process.wait()
-    assert list(tmp_path.iterdir()) == []
+    assert process.returncode == -signal.SIGKILL  # killed, not finished
+    assert float(marker.read_text()) > 0.5
+    assert not (tmp_path / "results").exists()

@@ -10,6 +10,7 @@ import json
 
 import numpy as np
 import pytest
+from pydrake.autodiffutils import AutoDiffXd
 
 from admittance.diagrams.app.cli import main
 from admittance.diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium
@@ -28,6 +29,7 @@ from admittance.diagrams.stability import (
     symbolic_eq13,
     with_values,
 )
+from admittance.systems.optimal_admittance import OptimalAdmittance
 
 
 @pytest.fixture(scope="module")
@@ -35,11 +37,37 @@ def paper_with_sensor():
     return load_scenario("paper_stiffness_step", ["sensor.kind=flexiforce"])
 
 
-def test_eq13_holds_for_the_corrected_sign_and_fails_for_the_printed_one():
-    result = symbolic_eq13()
-    assert result["dI_dXr_equals_minus_K_weighted_error"]
-    assert result["corrected_identity"]
-    assert result["printed_sign_grows"]
+def test_eq12_gradient_of_the_cost_is_minus_K_times_the_weighted_error():
+    """Symbolically, from eq. 5 and 7: dI/dXr = -K (E + alpha dE/dt), the factor that turns
+    the gradient flow into eq. 10' and, with it, eq. 13 (checked on the block below)."""
+    assert symbolic_eq13()["dI_dXr_equals_minus_K_weighted_error"]
+
+
+@pytest.mark.parametrize(
+    "measured, force_rate",
+    [(3.0, 4.0), (3.0, 40.0), (8.0, -4.0), (8.0, -40.0)],
+    ids=["E>0,w>0", "E>0,w<0", "E<0,w<0", "E<0,w>0"],
+)
+def test_eq13_holds_on_the_implemented_admittance_law(measured, force_rate):
+    """Eq. 13 on the block itself: dV/dt = (dI/dXr) dXr/dt with dI/dXr = -K w (eq. 12, the
+    test above), w = E + alpha dE/dt, and dXr/dt the OptimalAdmittance system's own, taken by
+    AutoDiffXd along time (dF/dt given, dz/dt the block's own derivative). Eq. 13 says
+    dV/dt = -K Gamma K w^2 < 0 for either sign of E and of w; the printed sign of eq. 10
+    would make it +K Gamma K w^2."""
+    gamma, alpha, K, desired = 1e-5, 0.1, 2500.0, 5.0
+    block = OptimalAdmittance(gamma=gamma, alpha=alpha, stiffness=K).ToAutoDiffXd()
+    context = block.CreateDefaultContext()
+    block.measured_force_input.FixValue(context, [AutoDiffXd(measured, [force_rate])])
+    block.desired_force_input.FixValue(context, [AutoDiffXd(desired, [0.0])])
+    block.set_initial_force_error(context, [AutoDiffXd(desired, [0.0])])
+    context.SetContinuousState([AutoDiffXd(0.4, [0.0])])
+    integral_rate = block.EvalTimeDerivatives(context).CopyToVector()[0].value()
+    context.SetContinuousState([AutoDiffXd(0.4, [integral_rate])])
+    reference_rate = block.reference_offset_output.Eval(context)[0].derivatives()[0]
+    weighted = (desired - measured) + alpha * (-force_rate)
+    lyapunov_rate = (-K * weighted) * reference_rate
+    assert lyapunov_rate == pytest.approx(-K * gamma * K * weighted**2, rel=1e-12)
+    assert lyapunov_rate < 0
 
 
 def test_papers_gains_are_stable_with_margin(paper_with_sensor):
@@ -56,8 +84,16 @@ def test_papers_gains_are_stable_with_margin(paper_with_sensor):
 
 def test_linear_model_matches_the_nonlinear_diagram(paper_with_sensor):
     step = linear_versus_nonlinear(paper_with_sensor, step=0.1, duration=0.5, samples=51)
-    assert step.nonlinear[-1] == pytest.approx(0.1, rel=0.2)  # the force follows Fr
-    assert np.max(np.abs(step.linear - step.nonlinear)) < 0.02 * 0.1
+    # The force follows the 0.1 N step of Fr. Quasi-static model (docs/paper-notes.md §4):
+    # the error jumps to 0.1 / (1 + K_eff Gamma K alpha) = 0.0144 N (K_eff = Kp Ke / (Kp + Ke)
+    # = 2381 N/m) and decays with alpha + 1 / (K_eff Gamma K) = 0.117 s: 2e-4 N is left at
+    # 0.5 s (measured 7.6e-5 N). 1e-3 N holds that with a factor of 5.
+    assert step.nonlinear[-1] == pytest.approx(0.1, abs=1e-3)
+    # Linear and nonlinear agree to 5.8e-7 N (measured; both simulated at accuracy 1e-7,
+    # and a 0.1 N step barely leaves the linear range). 1e-5 N is 17 times that. The
+    # linearized law with its integral gain 30 % too high (the admittance state's column of
+    # A times 1.3) departs by 1.0e-3 N: 100 times the tolerance.
+    assert np.max(np.abs(step.linear - step.nonlinear)) < 1e-5
 
 
 def test_critical_gamma_agrees_with_nonlinear_simulation(paper_with_sensor):
@@ -104,16 +140,24 @@ def test_lyapunov_function_along_the_paper_run():
     assert any(start <= 15.0 <= end + 0.01 for start, end in trajectory["growing_intervals"])
 
 
-def test_lyapunov_function_along_the_moving_wall():
+def test_lyapunov_function_along_the_moving_wall_rises_by_the_force_lag():
+    """Settled before the wall moves, V holds the noise's share only; the wall receding at
+    v = 5 mm/s from t = 2.5 s leaves the force error E = v / (Gamma K) = 0.42 N (the lag of
+    docs/paper-notes.md §4), so the mean of V rises by 1/2 (v / (Gamma K))^2 = 0.087."""
     result = run_scenario(load_scenario("paper_moving_wall", ["duration=4.0"]))
     trajectory = lyapunov_along_trajectory(result)
     V = trajectory["V"]
-    # Settled before the wall moves; the wall's motion (t = 2.5 s) raises V again and the
-    # sensor noise makes it flicker: reported, not hidden.
     before_motion = (result.time > 2.0) & (result.time < 2.5)
     during_motion = result.time > 3.0
-    assert 2 * np.mean(V[before_motion]) < np.mean(V[during_motion])
-    assert 0.0 < trajectory["growing_fraction"] < 1.0
+    lag = 0.005 / (1e-5 * 1200.0)
+    predicted = np.mean(V[before_motion]) + 0.5 * lag**2
+    # Measured 0.102 against the predicted 0.108: the lag is still building up after 3 s.
+    # 20 % holds that; without the lag (or with V unchanged) the mean stays near 0.021.
+    assert np.mean(V[during_motion]) == pytest.approx(predicted, rel=0.2)
+    # The sensor noise makes V flicker: it grows on about half of the samples after the
+    # first contact (measured 48 %), as a coin flip does; a V that decays or grows
+    # steadily gives a fraction near 0 or 1. Reported, not hidden.
+    assert 0.3 < trajectory["growing_fraction"] < 0.7
 
 
 def test_stability_command_writes_the_report(tmp_path, capsys):
@@ -133,7 +177,9 @@ def test_stability_command_writes_the_report(tmp_path, capsys):
     assert status == 0
     report = json.loads((out / "report.json").read_text())
     assert report["modes"]["stable"] and report["lyapunov"]["positive_definite"]
-    assert report["critical_gamma"] == pytest.approx(4.67e-5, rel=0.05)
+    # The nonlinear diagram converges at Gamma = 4.2e-5 and does not at 5.2e-5
+    # (test_critical_gamma_bracket_by_simulation): the linearization's boundary lies there.
+    assert GAMMA_CONVERGES < report["critical_gamma"] < GAMMA_DIVERGES
     assert report["confirmation"]["below"]["converges"]
     assert not report["confirmation"]["above"]["converges"]
     for name in ("stiffness", "alpha", "filter_cutoff", "period"):
@@ -147,3 +193,16 @@ def test_stability_command_writes_the_report(tmp_path, capsys):
     assert "lyapunov_along_trajectory.png" not in written
     # A progress line per stage on stderr, the four maps among them.
     assert captured.err.count("admittance stability: stability map ") == 4
+
+
+# A bracket of the critical Gamma of paper_stiffness_step with the FlexiForce (Ke = 5e4 N/m)
+# by nonlinear simulation, independent of the linearization: from the equilibrium, a 0.5 N
+# step of Fr dies out (peak error 1.7e-4 N in the last fifth of 1.5 s, from 0.5 N) at the
+# lower value and grows (0.94 N to 1.05 N) at the upper one.
+GAMMA_CONVERGES, GAMMA_DIVERGES = 4.2e-5, 5.2e-5
+
+
+@pytest.mark.slow
+def test_critical_gamma_bracket_by_simulation(paper_with_sensor):
+    assert simulate_near_critical(paper_with_sensor, GAMMA_CONVERGES, duration=1.5)["converges"]
+    assert not simulate_near_critical(paper_with_sensor, GAMMA_DIVERGES, duration=1.5)["converges"]

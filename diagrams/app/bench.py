@@ -16,12 +16,17 @@
 * the FLOOR: the bare MultibodyPlant of the same URDF (``AddPlanarArm``) held at the
   closed loop's initial configuration by constant gravity torques, simulated for the same
   duration with the same SimulatorConfig; and the ratio closed loop / floor;
+* one derivative evaluation alone, of the closed loop and of the floor at their initial
+  states, timed in CPU time of this process (``time.process_time``, the least of many
+  rounds), so that other processes on a shared machine barely move it: the cost per
+  evaluation without the integrator's own work and the logging;
 * the logging cost: one run with the loggers off (or, for a scenario that logs
   periodically, logging every step), against the timed median;
 * memory: the process's peak resident set size (``ru_maxrss``) and the tracemalloc peak of
   the warm-up run.
 
-``format_benchmark(report)`` renders the report as a readable table.
+``bench_report.format_benchmark(report, before)`` renders the report as a readable table,
+with an earlier run's report beside it if one is given.
 """
 
 from __future__ import annotations
@@ -44,18 +49,19 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from admittance.diagrams.app.formatting import number, seconds
+from admittance.diagrams.app.formatting import seconds
 from admittance.diagrams.closed_loop import AddScenarioArm, BuildClosedLoop, SetInitialConditions
 from admittance.diagrams.scenario import LoggingConfig, Scenario
 from admittance.diagrams.simulation import run_scenario
 
-__all__ = ["format_benchmark", "run_benchmark"]
+__all__ = ["run_benchmark"]
 
 # Methods of the project's LeafSystems that Drake calls back: DoCalcTimeDerivatives and
 # other Do* overrides, output/cache calcs (_Calc*, _calc*) and discrete updates (*Update*).
 _CALLBACK_NAME = re.compile(r"^(Do[A-Z]\w*|_\w*[Cc]alc\w*|_\w*Update\w*)$")
-# How many callbacks the report lists (the most expensive first).
-_TOP_CALLBACKS = 12
+# Rounds and evaluations per round of the single-evaluation timing.
+_EVALUATION_ROUNDS = 25
+_EVALUATIONS_PER_ROUND = 200
 
 
 # --- timing helpers ---------------------------------------------------------------------
@@ -85,6 +91,7 @@ class _Run:
     """One simulated run: AdvanceTo's wall time and the integrator's statistics."""
 
     wall_time: float
+    cpu_time: float  # this process's CPU time over the same AdvanceTo, s
     steps: int
     derivative_evaluations: int
     statistics: dict
@@ -103,15 +110,17 @@ def _advance(
     context = simulator.get_mutable_context()
     initialize(context)
     simulator.Initialize()
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     simulator.AdvanceTo(scenario.duration)
     wall_time = time.perf_counter() - start
+    cpu_time = time.process_time() - cpu_start
     integrator = simulator.get_integrator()
     final_positions = None
     if plant is not None:
         final_positions = plant.GetPositions(plant.GetMyContextFromRoot(context)).copy()
     return _Run(
         wall_time=wall_time,
+        cpu_time=cpu_time,
         steps=int(integrator.get_num_steps_taken()),
         derivative_evaluations=int(integrator.get_num_derivative_evaluations()),
         statistics=_integrator_statistics(simulator),
@@ -191,10 +200,22 @@ class _CallbackProfiler:
         self._patched.clear()
 
 
+def _systems(diagram: Diagram, prefix: str = ""):
+    """(name, system) of every system in `diagram`, inside its subdiagrams too.
+
+    A system inside a subdiagram is named after both, e.g. ``cartesian_pid/law``.
+    """
+    for system in diagram.GetSystems():
+        name = prefix + system.get_name()
+        yield name, system
+        if isinstance(system, Diagram):
+            yield from _systems(system, name + "/")
+
+
 def _python_system_classes(diagram: Diagram) -> set[type]:
     return {
         type(system)
-        for system in diagram.GetSystems()
+        for _, system in _systems(diagram)
         if not type(system).__module__.startswith("pydrake")
     }
 
@@ -206,7 +227,7 @@ def _profile_callbacks(scenario: Scenario) -> tuple[_Run, _CallbackProfiler, dic
     profiler.patch(classes)
     try:
         loop = BuildClosedLoop(scenario)
-        names = {id(system): system.get_name() for system in loop.diagram.GetSystems()}
+        names = {id(system): name for name, system in _systems(loop.diagram)}
         run = _advance(loop.diagram, scenario, lambda context: SetInitialConditions(loop, context))
     finally:
         profiler.restore()
@@ -214,6 +235,46 @@ def _profile_callbacks(scenario: Scenario) -> tuple[_Run, _CallbackProfiler, dic
 
 
 # --- the floor --------------------------------------------------------------------------
+
+
+def _time_one_evaluation(diagram: Diagram, context: Context) -> float:
+    """CPU time of one derivative evaluation at the context's state, s.
+
+    The state is set again before each evaluation (with a time a nanosecond later), so
+    that every cached value that depends on it is recomputed, as in an integrator step.
+    The least of several rounds, in this process's CPU time.
+    """
+    state = context.get_continuous_state_vector().CopyToVector()
+    derivatives = diagram.AllocateTimeDerivatives()
+    start_time = context.get_time()
+    best = np.inf
+    for _ in range(_EVALUATION_ROUNDS):
+        start = time.process_time()
+        for k in range(_EVALUATIONS_PER_ROUND):
+            context.SetTimeAndContinuousState(start_time + 1e-9 * k, state)
+            diagram.CalcTimeDerivatives(context, derivatives)
+        best = min(best, (time.process_time() - start) / _EVALUATIONS_PER_ROUND)
+    return best
+
+
+def _time_one_evaluation_of_each(scenario: Scenario, positions: np.ndarray) -> dict:
+    """One derivative evaluation of the closed loop and of the floor, interleaved."""
+    loop = BuildClosedLoop(scenario)
+    loop_context = loop.diagram.CreateDefaultContext()
+    SetInitialConditions(loop, loop_context)
+    floor, plant = _build_floor(scenario, positions)
+    floor_context = floor.CreateDefaultContext()
+    plant.SetPositions(plant.GetMyMutableContextFromRoot(floor_context), positions)
+    closed, bare = np.inf, np.inf
+    for _ in range(2):  # interleaved, so that both see the same machine
+        closed = min(closed, _time_one_evaluation(loop.diagram, loop_context))
+        bare = min(bare, _time_one_evaluation(floor, floor_context))
+    return {
+        "closed_loop_us": 1e6 * closed,
+        "floor_us": 1e6 * bare,
+        "ratio": closed / bare,
+        "rounds": _EVALUATION_ROUNDS,
+    }
 
 
 def _initial_positions(scenario: Scenario) -> np.ndarray:
@@ -296,10 +357,11 @@ def run_benchmark(
         progress: called with a short description as each run starts.
 
     Returns:
-        A JSON-serialisable dict (see ``format_benchmark`` for its reading): ``scenario``,
-        ``repeat``, ``closed_loop``, ``python``, ``floor``, ``ratio_to_floor``,
-        ``per_evaluation_ratio_to_floor``, ``logging``, ``memory``, ``environment``.
-        Times are in seconds unless a key says otherwise.
+        A JSON-serialisable dict (see ``bench_report.format_benchmark`` for its reading):
+        ``scenario``, ``repeat``, ``closed_loop``, ``python``, ``floor``,
+        ``ratio_to_floor``, ``per_evaluation_ratio_to_floor``, ``cpu_ratio_to_floor``,
+        ``cpu_per_evaluation_ratio_to_floor``, ``one_evaluation``, ``logging``, ``memory``,
+        ``environment``. Times are in seconds unless a key says otherwise.
 
     Raises:
         ValueError: `repeat` < 1.
@@ -338,6 +400,7 @@ def run_benchmark(
             )
         )
     wall = _spread([run.wall_time for run in runs])
+    cpu = _spread([run.cpu_time for run in runs])
     median = wall["median"]
     timed = runs[0]
 
@@ -365,9 +428,12 @@ def run_benchmark(
     _advance_floor(scenario, positions)  # warm-up
     floor_runs = [_advance_floor(scenario, positions) for _ in range(repeat)]
     floor_wall = _spread([run.wall_time for run in floor_runs])
+    floor_cpu = _spread([run.cpu_time for run in floor_runs])
     floor = floor_runs[0]
     floor_per_evaluation = _per(floor_wall["median"], floor.derivative_evaluations)
     per_evaluation = _per(median, timed.derivative_evaluations)
+    progress("one derivative evaluation alone, of the closed loop and of the floor")
+    one_evaluation = _time_one_evaluation_of_each(scenario, positions)
 
     # Logging cost: one run with the other logging setting.
     progress("one run with the other logging setting")
@@ -406,6 +472,7 @@ def run_benchmark(
         "repeat": repeat,
         "closed_loop": {
             "wall_time": wall,
+            "cpu_time": cpu,
             "build_time": statistics.median(build_times),
             "real_time_factor": _per(scenario.duration, median),
             "integrator_steps": timed.steps,
@@ -435,10 +502,11 @@ def run_benchmark(
                 python_fraction * median if python_fraction is not None else None
             ),
             "profiled_wall_time": profiled.wall_time,
-            "callbacks": callbacks[:_TOP_CALLBACKS],
+            "callbacks": callbacks,
         },
         "floor": {
             "wall_time": floor_wall,
+            "cpu_time": floor_cpu,
             "real_time_factor": _per(scenario.duration, floor_wall["median"]),
             "integrator_steps": floor.steps,
             "derivative_evaluations": floor.derivative_evaluations,
@@ -452,6 +520,14 @@ def run_benchmark(
         "per_evaluation_ratio_to_floor": (
             _per(per_evaluation, floor_per_evaluation) if floor_per_evaluation else None
         ),
+        # The same ratios in this process's CPU time: on a shared machine, other processes
+        # stretch wall times (short runs most), CPU times far less.
+        "cpu_ratio_to_floor": _per(cpu["median"], floor_cpu["median"]),
+        "cpu_per_evaluation_ratio_to_floor": _per(
+            _per(cpu["median"], timed.derivative_evaluations),
+            _per(floor_cpu["median"], floor.derivative_evaluations),
+        ),
+        "one_evaluation": one_evaluation,
         "logging": logging,
         "memory": {
             "peak_rss_mb": _peak_rss_mb(),
@@ -460,129 +536,3 @@ def run_benchmark(
         },
         "environment": _environment(),
     }
-
-
-# --- the table --------------------------------------------------------------------------
-
-
-def _signed_percent(fraction: float) -> str:
-    return ("+" if fraction >= 0 else "") + number(100 * fraction, " %", digits=2)
-
-
-def format_benchmark(report: dict) -> str:
-    """A readable table of a ``run_benchmark`` report."""
-    scenario = report["scenario"]
-    loop = report["closed_loop"]
-    floor = report["floor"]
-    python = report["python"]
-    integrator = loop["integrator"]
-    memory = report["memory"]
-    lines = [
-        f"Benchmark of {scenario['name']}: {number(scenario['duration'], ' s')} simulated, sensor "
-        f"{scenario['sensor']}, {scenario['integration_scheme']} accuracy "
-        f"{number(scenario['accuracy'])}, max step {number(scenario['max_step_size'], ' s')}, "
-        f"{report['repeat']} timed run(s) after a warm-up",
-        "",
-        f"{'':34}{'closed loop':>22}{'floor (bare arm)':>22}",
-    ]
-
-    def row(label: str, closed: str, bare: str = "") -> None:
-        lines.append(f"{label:34}{closed:>22}{bare:>22}")
-
-    row(
-        "AdvanceTo wall time, median",
-        seconds(loop["wall_time"]["median"]),
-        seconds(floor["wall_time"]["median"]),
-    )
-    row(
-        "  min / max",
-        f"{seconds(loop['wall_time']['min'])} / {seconds(loop['wall_time']['max'])}",
-        f"{seconds(floor['wall_time']['min'])} / {seconds(floor['wall_time']['max'])}",
-    )
-    row(
-        "real-time factor",
-        number(loop["real_time_factor"]),
-        number(floor["real_time_factor"]),
-    )
-    row("integrator steps", number(loop["integrator_steps"]), number(floor["integrator_steps"]))
-    row(
-        "derivative evaluations",
-        number(loop["derivative_evaluations"]),
-        number(floor["derivative_evaluations"]),
-    )
-    row("  per step", number(loop["derivative_evaluations_per_step"]))
-    row(
-        "wall time per step",
-        seconds(1e-6 * loop["wall_time_per_step_us"]),
-        seconds(1e-6 * floor["wall_time_per_step_us"]),
-    )
-    floor_per_evaluation = floor["wall_time_per_derivative_evaluation_us"]
-    row(
-        "wall time per derivative eval.",
-        seconds(1e-6 * loop["wall_time_per_derivative_evaluation_us"]),
-        seconds(1e-6 * floor_per_evaluation) if floor_per_evaluation is not None else seconds(None),
-    )
-    row("build time (excluded)", seconds(loop["build_time"]))
-    lines += [
-        "",
-        f"closed loop / floor: {number(report['ratio_to_floor'])} x in wall time, "
-        f"{number(report['per_evaluation_ratio_to_floor'])} x per derivative evaluation "
-        f"(floor drift {number(floor['max_joint_drift'], ' rad', digits=1)})",
-        f"integrator: {number(integrator.get('num_newton_raphson_iterations'))} Newton "
-        f"iterations, {number(integrator.get('num_jacobian_evaluations'))} Jacobians "
-        f"({number(integrator.get('num_derivative_evaluations_for_jacobian'))} derivative "
-        f"evaluations), {number(integrator.get('num_iteration_matrix_factorizations'))} "
-        f"factorizations, step shrinkages "
-        f"{number(integrator.get('num_step_shrinkages_from_error_control'))} (error control) + "
-        f"{number(integrator.get('num_step_shrinkages_from_substep_failures'))} "
-        f"(substep failures), smallest step "
-        f"{seconds(integrator.get('smallest_adapted_step_size_taken'))}",
-    ]
-    if not loop["deterministic"]:
-        lines.append("warning: the runs did not take the same steps (non-deterministic loop)")
-    fraction = python["fraction_of_wall_time"]
-    lines += [
-        "",
-        f"Python callbacks (separate profiling run, {seconds(python['profiled_wall_time'])}): "
-        f"{number(python['callback_calls'])} calls, "
-        f"{number(python['callbacks_per_derivative_evaluation'])} per derivative evaluation; "
-        f"{seconds(python['time_in_callbacks'])} inside them"
-        + (
-            f" = {number(100 * fraction, ' %', digits=2)} of the run"
-            if fraction is not None
-            else ""
-        ),
-        f"  {'callback':46}{'calls':>10}{'per eval':>10}{'time':>10}{'mean':>10}",
-    ]
-    for entry in python["callbacks"]:
-        lines.append(
-            f"  {entry['name']:46}{number(entry['calls']):>10}"
-            f"{number(entry['per_derivative_evaluation']):>10}"
-            f"{seconds(entry['time']):>10}{seconds(1e-6 * entry['mean_us']):>10}"
-        )
-    timed = loop["wall_time"]
-    lines += [
-        "",
-        f"logging (one run each; the timed runs ranged {seconds(timed['min'])} to "
-        f"{seconds(timed['max'])}):",
-    ]
-    for entry in report["logging"]:
-        relative = entry.get("relative_to_timed")
-        lines.append(
-            f"  {entry['logging']:14}{seconds(entry['wall_time']):>10}"
-            f"{number(entry['integrator_steps']):>10} steps"
-            + (f"  ({_signed_percent(relative - 1)} vs timed median)" if relative else "")
-        )
-    lines += [
-        "",
-        f"memory: peak RSS {number(memory['peak_rss_mb'], ' MB')} (process), Python allocations "
-        f"peak {number(memory['python_peak_mb'], ' MB')} (tracemalloc, warm-up run)",
-        f"force check (warm-up): peak {number(loop['peak_force'])} N, contact losses "
-        f"{number(loop['contact_losses'])}",
-    ]
-    environment = report["environment"]
-    lines.append(
-        f"Python {environment['python']}, drake {environment['drake']}, "
-        f"{environment['cpu_count']} CPUs, {environment['platform']}"
-    )
-    return "\n".join(lines)

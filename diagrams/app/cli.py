@@ -5,6 +5,7 @@
     admittance diagram   [SCENARIO] [--set KEY=VALUE ...] --out FILE
     admittance compare   [SCENARIO] [--set KEY=VALUE ...] [--controllers K,...] [--out DIR]
     admittance bench     [SCENARIO] [--set KEY=VALUE ...] [--repeat N] [--json FILE]
+                         [--before FILE]
     admittance sweep     [SCENARIO] [--set KEY=VALUE ...] [--grid KEY=SPEC ...]
                          [--random KEY=DIST ...] [--samples N] [--seed S] [--workers N]
                          [--engine local|dask] [--scheduler ADDRESS] --out DIR [--force]
@@ -159,7 +160,8 @@ def _cmd_diagram(args: argparse.Namespace, progress) -> int:
 def _cmd_bench(args: argparse.Namespace, progress) -> int:
     import json
 
-    from admittance.diagrams.app.bench import format_benchmark, run_benchmark
+    from admittance.diagrams.app.bench import run_benchmark
+    from admittance.diagrams.app.bench_report import format_benchmark, load_benchmark_report
     from admittance.diagrams.app.result_folder import atomic_write_text, check_writable
     from admittance.diagrams.closed_loop import CheckScenarioStarts
     from admittance.diagrams.scenario import ScenarioError, load_scenario
@@ -170,11 +172,17 @@ def _cmd_bench(args: argparse.Namespace, progress) -> int:
             "whole simulation)"
         )
     scenario = load_scenario(args.scenario, args.overrides)
+    before = None
+    if args.before:
+        try:
+            before = load_benchmark_report(args.before, scenario)
+        except ValueError as error:
+            raise ScenarioError(str(error)) from None
     if args.json:
         check_writable(args.json, "--json")
     CheckScenarioStarts(scenario)
     report = run_benchmark(scenario, repeat=args.repeat, progress=progress)
-    print(format_benchmark(report))
+    print(format_benchmark(report, before))
     if args.json:
         path = Path(args.json)
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -387,6 +395,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--repeat", type=int, default=3, help=f"timed runs, 1 to {MAX_REPEAT} (default 3)"
     )
     bench.add_argument("--json", metavar="FILE", help="also write the report as JSON")
+    bench.add_argument(
+        "--before",
+        metavar="FILE",
+        help="the --json report of an earlier run of the same scenario (e.g. on the code "
+        "before a change), printed beside this one with its per-callback profile",
+    )
     bench.set_defaults(handler=_cmd_bench)
 
     sweep = _subcommand(

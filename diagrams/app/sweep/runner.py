@@ -199,6 +199,7 @@ def _stop_pool(executor: concurrent.futures.ProcessPoolExecutor) -> None:
     """Cancels pending tasks and terminates the workers (a task in progress is lost)."""
     # ProcessPoolExecutor has no public terminate before Python 3.14.
     processes = list(getattr(executor, "_processes", {}).values())
+    manager = getattr(executor, "_executor_manager_thread", None)
     executor.shutdown(wait=False, cancel_futures=True)
     for process in processes:
         if process.is_alive():
@@ -208,6 +209,12 @@ def _stop_pool(executor: concurrent.futures.ProcessPoolExecutor) -> None:
         if process.is_alive():
             process.kill()
             process.join(timeout=5)
+    # The pool's manager thread sees its workers gone and closes its wake-up pipe; let it
+    # finish here. Left to the interpreter's exit, CPython 3.11's exit hook can write to
+    # that pipe while the thread closes it and print "Exception ignored ... Bad file
+    # descriptor" after the command's one line (seen once in CI, under heavy load).
+    if manager is not None:
+        manager.join(timeout=10)
 
 
 def _run_local(function: Callable, tasks: list, workers: int, on_result: Callable) -> None:
