@@ -10,7 +10,7 @@ Four kinds of fault, each one flag of ``fault_flags``:
 * ``stuck`` (after N_s = 3 samples): the reading does not vary while it must, i.e.
   |r[k] - r[k-1]| < sigma / 100 while the sensor's noise sigma is expected (a change that
   small has a chance of 0.56 % per sample for Gaussian noise, so three in a row once in
-  1.8e7 samples), or r is unchanged while the tip moves in contact fast enough that the
+  5.7e6 samples), or r is unchanged while the tip moves in contact fast enough that the
   stiffness estimate predicts a change beyond the tolerance (k_hat |x'| T > F_tol);
 * ``implausible`` (after N_i = 3 samples): r disagrees with the arm's own estimate of the
   contact force F_hat (the momentum observer, systems/contact_force_observer.py, which uses

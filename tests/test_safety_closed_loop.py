@@ -164,7 +164,7 @@ MONTE_CARLO = {
 def test_the_monte_carlo_keeps_every_guarantee(tmp_path):
     """At every one of the 200 points: the largest force, first contact included, at most
     Fmax; no contact loss after first contact; the steady-state error within 2 % of Fr;
-    no fault flagged on a healthy sensor. About 30 min on 2 cores (2 workers)."""
+    no fault flagged on a healthy sensor. 16-22 min on the shared 2-core machine (2 workers)."""
     from admittance.diagrams.app.sweep.definition import define_sweep
     from admittance.diagrams.app.sweep.points import read_points
     from admittance.diagrams.app.sweep.run import run_sweep
