@@ -427,15 +427,23 @@ def SolvePlanarInverseKinematics(
     *,
     tolerance: float = 1e-10,
     max_iterations: int = 100,
+    coordinates: tuple[str, ...] = ("x", "y", "theta"),
+    expressed_in: str = "world",
 ) -> np.ndarray:
     """Joint positions that put `frame_name` at X = target, by Newton steps from a seed.
 
     Uses the plant's own kinematics (so any planar URDF works); the seed picks the branch.
+    X is (x, y, theta) in world unless `coordinates` and `expressed_in` say otherwise (a
+    fingertip's (x, y) in its face's frame); the seed may hold every position of the plant,
+    and joints that do not move the frame keep their seed.
 
     Raises:
         ValueError: the target is not reached (out of the workspace, or singular).
     """
-    kinematics = PlanarFrameKinematics(plant, frame_name)
+    kinematics = PlanarFrameKinematics(
+        plant, frame_name, coordinates=coordinates, expressed_in=expressed_in
+    )
+    angle = kinematics.angle_index
     target = np.asarray(target, dtype=float)
     q = np.zeros(plant.num_positions())
     guess = np.asarray(joint_guess, dtype=float)
@@ -444,7 +452,8 @@ def SolvePlanarInverseKinematics(
     for _ in range(max_iterations):
         kinematics.set_state(np.concatenate([q, v]))
         error = target - kinematics.pose()
-        error[2] = np.arctan2(np.sin(error[2]), np.cos(error[2]))
+        if angle is not None:
+            error[angle] = np.arctan2(np.sin(error[angle]), np.cos(error[angle]))
         if np.linalg.norm(error) < tolerance:
             return q
         step = np.linalg.lstsq(kinematics.jacobian(), error, rcond=None)[0]

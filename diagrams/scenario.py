@@ -48,6 +48,9 @@ __all__ = [
 ]
 
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
+# A scenario file's top-level `kind`: absent or "arm" for the arm against its wall (the
+# schema below), "grasp" for the planar gripper (diagrams/grasp_scenario.py).
+SCENARIO_KINDS = ("arm", "grasp")
 
 
 class ScenarioError(ValueError):
@@ -461,18 +464,19 @@ def _coerce_numbers(value):
     return value
 
 
-def _check_tree(data: dict, schema, prefix: str = "") -> dict:
+def _check_tree(data: dict, schema, prefix: str = "", valid: typing.Iterable[str] = ()) -> dict:
+    """`data` checked against `schema`; `valid` (the root's keys) names the close matches."""
     fields = _fields_of(schema)
     checked = {}
     for name, value in data.items():
         key = prefix + name
         if name not in fields:
-            raise _unknown_key_error(key, scenario_keys())
+            raise _unknown_key_error(key, valid or scenario_keys())
         kind = fields[name]
         if _is_struct(kind):
             if not isinstance(value, dict):
                 raise ScenarioError(f"{key}: expected a mapping, got {value!r}")
-            checked[name] = _check_tree(value, kind, key + ".")
+            checked[name] = _check_tree(value, kind, key + ".", valid)
         else:
             checked[name] = _check_type(key, value, kind)
     return checked
@@ -611,10 +615,20 @@ def load_scenario(
         source: a built-in scenario name, a YAML path, or None for the defaults.
         overrides: "key=value" strings (as given to --set) or a {key: value} mapping.
 
+    A file whose top-level ``kind`` is ``grasp`` is a grasp scenario: it is loaded with
+    its own schema (diagrams/grasp_scenario.py) and a GraspScenario is returned.
+
     Raises:
         ScenarioError: one line naming the first bad key and what is allowed.
     """
     data, _ = _read_source(source)
+    kind = data.pop("kind", "arm")
+    if kind not in SCENARIO_KINDS:
+        raise ScenarioError(f"kind: must be one of {', '.join(SCENARIO_KINDS)}, got {kind!r}")
+    if kind == "grasp":
+        from admittance.diagrams.grasp_scenario import load_grasp_scenario
+
+        return load_grasp_scenario(data, overrides)
     data = _coerce_numbers(data)
     items = overrides.items() if isinstance(overrides, typing.Mapping) else None
     if items is None:

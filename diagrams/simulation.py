@@ -368,7 +368,12 @@ def run_scenario(
             f"the integrator failed at t = {context.get_time():.6g} s: {str(error).splitlines()[0]}"
         )
     wall_time = time.perf_counter() - start
-    result = _collect(loop, simulator, wall_time, safety_numbers)
+    return _finished(_collect(loop, simulator, wall_time, safety_numbers), divergence)
+
+
+def _finished(result, divergence: list[str]):
+    """`result` marked failed or not in its metrics; raises SimulationDivergedError with it
+    if `divergence` holds a reason (the last one is reported)."""
     if divergence:
         result.metrics["failed"] = True
         result.metrics["failure"] = divergence[-1]

@@ -24,6 +24,8 @@ import subprocess
 import sys
 import sysconfig
 import uuid
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -160,6 +162,122 @@ def _view_bounds(points_xy: np.ndarray) -> tuple[float, float, float, float]:
     return float(low[0]), float(high[0]), float(bottom), float(top)
 
 
+def _arrow_scale(forces: np.ndarray, meters_per_newton: float, max_length: float) -> float:
+    """Arrow length per newton, m/N: `meters_per_newton`, or less if the largest of `forces`
+    would draw longer than `max_length` (the arrows stay proportional within a replay)."""
+    peak = float(forces.max()) if forces.size else 0.0
+    if peak * meters_per_newton > max_length:
+        return max_length / peak
+    return meters_per_newton
+
+
+# The cone's apex is at its origin and it opens along +z: turned to open along -x, its apex
+# points along +x.
+_HEAD_ALONG_X = RotationMatrix.MakeYRotation(-math.pi / 2)
+
+
+@dataclass(frozen=True)
+class _ForceArrow:
+    """A force arrow in a replay: a box shaft and a cone head, set to a length per frame."""
+
+    path: str
+    shaft_width: float
+    head_length: float
+    head_radius: float
+    color: Rgba
+
+    def add_to(self, meshcat: Meshcat) -> None:
+        width = self.shaft_width
+        meshcat.SetObject(f"{self.path}/shaft", Box(1.0, width, width), self.color)
+        meshcat.SetObject(
+            f"{self.path}/head",
+            MeshcatCone(self.head_length, self.head_radius, self.head_radius),
+            self.color,
+        )
+
+    def animate(self, animation, frame: int, start, length: float, rotation=None) -> None:
+        """The arrow from `start`, `length` long, along +x turned by `rotation` (None: +x).
+
+        The shaft reaches the head's base and the head shrinks with an arrow shorter than
+        itself; an arrow of no length is hidden.
+        """
+        direction = np.array([1.0, 0.0, 0.0]) if rotation is None else rotation.col(0)
+        head_rotation = _HEAD_ALONG_X if rotation is None else rotation @ _HEAD_ALONG_X
+        shaft_rotation = RotationMatrix() if rotation is None else rotation
+        head_scale = min(1.0, length / self.head_length)
+        shaft = max(length - self.head_length, _TINY_SCALE)
+        animation.SetProperty(frame, self.path, "visible", bool(length > _TINY_SCALE))
+        animation.SetTransform(
+            frame,
+            f"{self.path}/shaft",
+            RigidTransform(shaft_rotation, start + 0.5 * shaft * direction),
+        )
+        animation.SetProperty(frame, f"{self.path}/shaft", "scale", [shaft, 1.0, 1.0])
+        animation.SetTransform(
+            frame, f"{self.path}/head", RigidTransform(head_rotation, start + length * direction)
+        )
+        animation.SetProperty(
+            frame, f"{self.path}/head", "scale", [max(head_scale, _TINY_SCALE)] * 3
+        )
+
+
+class _Replay:
+    """The small diagram a replay is recorded on: a model's illustration geometry (its
+    plant and SceneGraph, added to `builder`) drawn by a MeshcatVisualizer on a Meshcat
+    served on localhost for the time of the call."""
+
+    def __init__(self, builder: DiagramBuilder, plant, scene_graph) -> None:
+        self.plant = plant
+        self.meshcat = _quiet_meshcat()
+        self.visualizer = MeshcatVisualizer.AddToBuilder(
+            builder,
+            scene_graph,
+            self.meshcat,
+            MeshcatVisualizerParams(
+                role=Role.kIllustration, publish_period=1.0 / REPLAY_FRAMES_PER_SECOND
+            ),
+        )
+        self.diagram = builder.Build()
+        self.context = self.diagram.CreateDefaultContext()
+        self.plant_context = plant.GetMyMutableContextFromRoot(self.context)
+
+    def body_positions(self, joint_positions: np.ndarray, bodies) -> np.ndarray:
+        """The origins of `bodies` in world at each row of `joint_positions`, (n * b, 3)."""
+        plant, plant_context = self.plant, self.plant_context
+        points = []
+        for q in joint_positions:
+            plant.SetPositions(plant_context, q)
+            points.append(
+                [plant.EvalBodyPoseInWorld(plant_context, b).translation() for b in bodies]
+            )
+        return np.vstack(points)
+
+    def record(
+        self,
+        times: np.ndarray,
+        joint_positions: np.ndarray,
+        draw_overlays: Callable[[object, int, int], None],
+    ) -> None:
+        """Records the model posed at `joint_positions[k]` at `times[k]`; the overlays of
+        each frame are set by ``draw_overlays(animation, frame, k)``."""
+        animation = self.visualizer.StartRecording(set_transforms_while_recording=False)
+        for index, t in enumerate(times):
+            self.context.SetTime(float(t))
+            self.plant.SetPositions(self.plant_context, joint_positions[index])
+            self.diagram.ForcedPublish(self.context)
+            draw_overlays(animation, animation.frame(float(t)), index)
+        self.visualizer.StopRecording()
+        self.visualizer.PublishRecording()
+
+    def write(self, path: Path, X_WCamera: RigidTransform, bounds) -> Path:
+        """The orthographic view of `bounds` (xmin, xmax, ymin, ymax in the camera's plane)
+        from `X_WCamera`, and the recording, as one HTML file written atomically."""
+        xmin, xmax, ymin, ymax = bounds
+        self.meshcat.Set2dRenderMode(X_WC=X_WCamera, xmin=xmin, xmax=xmax, ymin=ymin, ymax=ymax)
+        _write_atomically(path, self.meshcat.StaticHtml().encode("utf-8"))
+        return path
+
+
 def write_meshcat_replay(result: SimulationResult, path: str | os.PathLike) -> Path:
     """Writes a self-contained HTML replay of a finished run, viewable offline.
 
@@ -193,86 +311,43 @@ def write_meshcat_replay(result: SimulationResult, path: str | os.PathLike) -> P
     commanded_xy = _interpolate(
         result.time, (result.desired_position + result.reference_offset)[:, :2], times
     )
-    peak_force = float(force.max())
-    meters_per_newton = FORCE_ARROW_METERS_PER_NEWTON
-    if peak_force * meters_per_newton > FORCE_ARROW_MAX_LENGTH:
-        meters_per_newton = FORCE_ARROW_MAX_LENGTH / peak_force
+    meters_per_newton = _arrow_scale(force, FORCE_ARROW_METERS_PER_NEWTON, FORCE_ARROW_MAX_LENGTH)
     arrow_length = force * meters_per_newton
     reference_length = scenario.force_reference * meters_per_newton
 
     builder = DiagramBuilder()
-    plant, scene_graph = AddScenarioArm(builder, scenario.arm)
-    meshcat = _quiet_meshcat()
-    visualizer = MeshcatVisualizer.AddToBuilder(
-        builder,
-        scene_graph,
-        meshcat,
-        MeshcatVisualizerParams(
-            role=Role.kIllustration, publish_period=1.0 / REPLAY_FRAMES_PER_SECOND
-        ),
-    )
-    diagram = builder.Build()
-    context = diagram.CreateDefaultContext()
-    plant_context = plant.GetMyMutableContextFromRoot(context)
+    replay = _Replay(builder, *AddScenarioArm(builder, scenario.arm))
+    plant = replay.plant
 
     # Fit the view around everything drawn: every body of the arm over the run, the wall's
     # face, the longest arrow and the commanded position.
     bodies = [plant.get_body(BodyIndex(index)) for index in range(1, plant.num_bodies())]
     points = [tip_xy, commanded_xy, np.column_stack([wall_position, tip_xy[:, 1]])]
     points.append(np.column_stack([tip_xy[:, 0] + arrow_length, tip_xy[:, 1]]))
-    for q in joint_positions:
-        plant.SetPositions(plant_context, q)
-        points.append(
-            np.array(
-                [plant.EvalBodyPoseInWorld(plant_context, b).translation()[:2] for b in bodies]
-            )
-        )
+    points.append(replay.body_positions(joint_positions, bodies)[:, :2])
     xmin, xmax, ymin, ymax = _view_bounds(np.vstack(points))
 
     # The overlays; their poses are animated below. The wall spans the view's height.
+    meshcat = replay.meshcat
     wall_height = (ymax - ymin) + 2.0 * VIEW_MARGIN
     meshcat.SetObject(WALL_PATH, Box(WALL_THICKNESS, wall_height, 0.02), _WALL_COLOR)
-    meshcat.SetObject(
-        f"{FORCE_PATH}/shaft", Box(1.0, _ARROW_SHAFT_WIDTH, _ARROW_SHAFT_WIDTH), _FORCE_COLOR
+    # The arrow points along +x, the direction of the force the fingertip applies to the wall.
+    arrow = _ForceArrow(
+        FORCE_PATH, _ARROW_SHAFT_WIDTH, _ARROW_HEAD_LENGTH, _ARROW_HEAD_RADIUS, _FORCE_COLOR
     )
-    meshcat.SetObject(
-        f"{FORCE_PATH}/head",
-        MeshcatCone(_ARROW_HEAD_LENGTH, _ARROW_HEAD_RADIUS, _ARROW_HEAD_RADIUS),
-        _FORCE_COLOR,
-    )
+    arrow.add_to(meshcat)
     meshcat.SetObject(FORCE_REFERENCE_PATH, Box(0.003, 0.04, 0.003), _REFERENCE_COLOR)
     meshcat.SetObject(COMMANDED_PATH, Sphere(0.005), _COMMANDED_COLOR)
-    # The cone's apex is at its origin and it opens along +z: turned to open along -x, its
-    # apex points along +x, the direction of the force the fingertip applies to the wall.
-    R_head = RotationMatrix.MakeYRotation(-math.pi / 2)
     wall_y = 0.5 * (ymin + ymax)
 
-    animation = visualizer.StartRecording(set_transforms_while_recording=False)
-    for t, q, tip, xe, length, xc in zip(
-        times, joint_positions, tip_xy, wall_position, arrow_length, commanded_xy, strict=True
-    ):
-        context.SetTime(float(t))
-        plant.SetPositions(plant_context, q)
-        diagram.ForcedPublish(context)
-        frame = animation.frame(float(t))
+    def draw_overlays(animation, frame: int, index: int) -> None:
+        tip, xc = tip_xy[index], commanded_xy[index]
         animation.SetTransform(
-            frame, WALL_PATH, RigidTransform([xe + 0.5 * WALL_THICKNESS, wall_y, WALL_Z])
+            frame,
+            WALL_PATH,
+            RigidTransform([wall_position[index] + 0.5 * WALL_THICKNESS, wall_y, WALL_Z]),
         )
-        # Arrow from the fingertip, apex at tip + length: shaft up to the head's base, and a
-        # head shrunk with the arrow when the arrow is shorter than the head.
-        head_scale = min(1.0, length / _ARROW_HEAD_LENGTH)
-        shaft = max(length - _ARROW_HEAD_LENGTH, _TINY_SCALE)
-        animation.SetProperty(frame, FORCE_PATH, "visible", bool(length > _TINY_SCALE))
-        animation.SetTransform(
-            frame, f"{FORCE_PATH}/shaft", RigidTransform([tip[0] + 0.5 * shaft, tip[1], FORCE_Z])
-        )
-        animation.SetProperty(frame, f"{FORCE_PATH}/shaft", "scale", [shaft, 1.0, 1.0])
-        animation.SetTransform(
-            frame, f"{FORCE_PATH}/head", RigidTransform(R_head, [tip[0] + length, tip[1], FORCE_Z])
-        )
-        animation.SetProperty(
-            frame, f"{FORCE_PATH}/head", "scale", [max(head_scale, _TINY_SCALE)] * 3
-        )
+        arrow.animate(animation, frame, np.array([tip[0], tip[1], FORCE_Z]), arrow_length[index])
         animation.SetTransform(
             frame,
             FORCE_REFERENCE_PATH,
@@ -281,16 +356,12 @@ def write_meshcat_replay(result: SimulationResult, path: str | os.PathLike) -> P
         animation.SetTransform(
             frame, COMMANDED_PATH, RigidTransform([xc[0], xc[1], FORCE_Z - 0.002])
         )
-    visualizer.StopRecording()
-    visualizer.PublishRecording()
 
+    replay.record(times, joint_positions, draw_overlays)
     # Camera above the plane looking down -z (its +y axis) with world +y up (its +z axis):
     # its x axis is then world +x, drawn to the right.
     X_WC = RigidTransform(RotationMatrix.MakeXRotation(-math.pi / 2), [0.0, 0.0, 1.0])
-    meshcat.Set2dRenderMode(X_WC=X_WC, xmin=xmin, xmax=xmax, ymin=ymin, ymax=ymax)
-
-    _write_atomically(path, meshcat.StaticHtml().encode("utf-8"))
-    return path
+    return replay.write(path, X_WC, (xmin, xmax, ymin, ymax))
 
 
 # ---------------------------------------------------------------------- diagram picture

@@ -11,7 +11,7 @@ and the held torque as the law's discrete states, and outputs the held torque di
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from pydrake.autodiffutils import AutoDiffXd
@@ -22,9 +22,10 @@ from pydrake.systems.primitives import Demultiplexer, Integrator
 from pydrake.systems.scalar_conversion import TemplateSystem
 
 from admittance.systems.planar_kinematics import (
-    TASK_SIZE,
+    PLANAR_COORDINATES,
     PlanarFrameKinematics,
     kinematics_size,
+    task_coordinates,
     wrap_angle,
 )
 from admittance.systems.ports import set_output
@@ -58,8 +59,13 @@ def CartesianPidLaw_(T):
             tau = clip(J(q)^T F_PID, -effort_limit, effort_limit)            (eq. 16)
             dz/dt = ec  (+ back-calculation while an actuator saturates)
 
+        X is the task vector of ``coordinates`` (by default the arm's (x, y, theta); a
+        finger of a hand uses (x, y) of its tip in its face's frame), m = len(coordinates)
+        long; the angle error, if X has theta, is wrapped. tau drives only the actuators
+        whose joints move the frame (a finger's PID gives zero torque to the others).
+
         Continuous (``period`` 0): memoryless. z is the ``integral`` input and the one
-        output is ``actuation_and_integral_rate`` = [tau; dz/dt] (nu + 3), computed in one
+        output is ``actuation_and_integral_rate`` = [tau; dz/dt] (nu + m), computed in one
         calc. Sampled (``period`` > 0): z and the held torque are discrete states; at each
         sample tau is latched and z advances by period * dz/dt; the output ``actuation``
         reads the held torque (a state output port), and there is no ``integral`` input.
@@ -84,28 +90,38 @@ def CartesianPidLaw_(T):
             kd: float | Sequence[float],
             ki: float | Sequence[float],
             period: float = 0.0,
+            coordinates: Sequence[str] = PLANAR_COORDINATES,
             converter=None,
         ) -> None:
             """
             Args:
-                plant: finalized MultibodyPlant_[T] of the arm (fully actuated).
-                kp, kd, ki: diagonal gains on (x, y, theta): N/m, N s/m, N/(m s) and the
-                    rotational equivalents. kp > 0, kd >= 0, ki >= 0.
+                plant: finalized MultibodyPlant_[T] (the arm, or a hand with its object).
+                kp, kd, ki: diagonal gains on X: N/m, N s/m, N/(m s) and the rotational
+                    equivalents. kp > 0, kd >= 0, ki >= 0.
                 period: 0 for a continuous controller, otherwise its sampling period in s.
+                coordinates: the task vector X, names among TASK_COORDINATES.
             """
             LeafSystem_[T].__init__(self, converter=converter)
             self._plant = plant
+            self._coordinates = task_coordinates(coordinates)
+            size = len(self._coordinates)
+            self._size = size
+            self._angle_index = (
+                self._coordinates.index("theta") if "theta" in self._coordinates else None
+            )
             num_velocities = plant.num_velocities()
             num_actuators = plant.num_actuated_dofs()
-            if num_actuators != num_velocities:
+            if num_actuators < size:
                 raise ValueError(
-                    f"the Cartesian PID needs a fully actuated arm: {num_actuators} actuators "
-                    f"for {num_velocities} velocities"
+                    f"the Cartesian PID needs a fully actuated frame: at least {size} actuators "
+                    f"for its {size} task coordinates; the plant has {num_actuators}"
                 )
             self._num_velocities = num_velocities
-            self._kp = _gain_vector("kp", kp, 3, allow_zero=False)
-            self._kd = _gain_vector("kd", kd, 3, allow_zero=True)
-            self._ki = _gain_vector("ki", ki, 3, allow_zero=True)
+            # tau = J^T F_PID as straight-line code on the kinematics vector [X; dX/dt; J].
+            self._transpose_product = _transpose_product(size, num_velocities)
+            self._kp = _gain_vector("kp", kp, size, allow_zero=False)
+            self._kd = _gain_vector("kd", kd, size, allow_zero=True)
+            self._ki = _gain_vector("ki", ki, size, allow_zero=True)
             self._kp_list, self._kd_list, self._ki_list = (
                 gains.tolist() for gains in (self._kp, self._kd, self._ki)
             )
@@ -122,7 +138,13 @@ def CartesianPidLaw_(T):
             limits = []
             for row, index in enumerate(plant.GetJointActuatorIndices()):
                 actuator = plant.get_joint_actuator(index)
-                selection[row, actuator.joint().velocity_start()] = 1.0
+                column = actuator.joint().velocity_start()
+                if selection[:, column].any():
+                    raise ValueError(
+                        "the Cartesian PID needs a fully actuated arm, one actuator per joint: "
+                        f"joint '{actuator.joint().name()}' has two"
+                    )
+                selection[row, column] = 1.0
                 limit = actuator.effort_limit()
                 limits.append(limit)  # Drake keeps it > 0 (inf where the URDF gives none)
             self._actuation_from_generalized = selection
@@ -130,23 +152,23 @@ def CartesianPidLaw_(T):
             self._effort_limits = np.array(limits)
             self._effort_limits_list = self._effort_limits.tolist()
 
-            self.commanded_position_input = self.DeclareVectorInputPort("commanded_position", 3)
-            self.commanded_velocity_input = self.DeclareVectorInputPort("commanded_velocity", 3)
+            self.commanded_position_input = self.DeclareVectorInputPort("commanded_position", size)
+            self.commanded_velocity_input = self.DeclareVectorInputPort("commanded_velocity", size)
             self.kinematics_input = self.DeclareVectorInputPort(
-                "kinematics", kinematics_size(num_velocities)
+                "kinematics", kinematics_size(num_velocities, size)
             )
             if self._period == 0.0:
-                self.integral_input = self.DeclareVectorInputPort("integral", 3)
+                self.integral_input = self.DeclareVectorInputPort("integral", size)
                 self.actuation_and_integral_rate_output = self.DeclareVectorOutputPort(
                     "actuation_and_integral_rate",
-                    num_actuators + 3,
+                    num_actuators + size,
                     self._CalcLaw,
                     prerequisites_of_calc={self.all_input_ports_ticket()},
                 )
             else:
-                # Discrete state: the integral of ec (3) and the held actuation (nu), the
+                # Discrete state: the integral of ec (m) and the held actuation (nu), the
                 # latter output as it is: nothing of the law runs between samples.
-                self._integral_index = self.DeclareDiscreteState(3)
+                self._integral_index = self.DeclareDiscreteState(size)
                 self._held_index = self.DeclareDiscreteState(num_actuators)
                 self.DeclarePeriodicDiscreteUpdateEvent(
                     period_sec=self._period, offset_sec=0.0, update=self._DiscreteUpdate
@@ -161,6 +183,7 @@ def CartesianPidLaw_(T):
                 kd=other._kd,
                 ki=other._ki,
                 period=other._period,
+                coordinates=other._coordinates,
                 converter=converter,
             )
 
@@ -172,6 +195,11 @@ def CartesianPidLaw_(T):
         @property
         def period(self) -> float:
             return self._period
+
+        @property
+        def coordinates(self) -> tuple[str, ...]:
+            """The task coordinates, in the order of X and of the gains."""
+            return self._coordinates
 
         @property
         def effort_limits(self) -> np.ndarray:
@@ -187,8 +215,9 @@ def CartesianPidLaw_(T):
             """ec = Xc - h(q) (angle wrapped) at the context's inputs."""
             kinematics = self.kinematics_input.Eval(context).tolist()
             commanded = self.commanded_position_input.Eval(context).tolist()
-            error = [commanded[i] - kinematics[i] for i in range(TASK_SIZE)]
-            error[2] = wrap_angle(error[2])
+            error = [commanded[i] - kinematics[i] for i in range(self._size)]
+            if self._angle_index is not None:
+                error[self._angle_index] = wrap_angle(error[self._angle_index])
             return np.array(error)
 
         # --- the law ----------------------------------------------------------------------
@@ -202,26 +231,17 @@ def CartesianPidLaw_(T):
             commanded = self.commanded_position_input.Eval(context).tolist()
             commanded_rate = self.commanded_velocity_input.Eval(context).tolist()
             kp, kd, ki = self._kp_list, self._kd_list, self._ki_list
-            error = [commanded[i] - kinematics[i] for i in range(TASK_SIZE)]  # eq. 15
-            error[2] = wrap_angle(error[2])
+            size = self._size
+            error = [commanded[i] - kinematics[i] for i in range(size)]  # eq. 15
+            if self._angle_index is not None:
+                error[self._angle_index] = wrap_angle(error[self._angle_index])
             wrench = [  # eq. 14
                 kp[i] * error[i]
-                + kd[i] * (commanded_rate[i] - kinematics[TASK_SIZE + i])
+                + kd[i] * (commanded_rate[i] - kinematics[size + i])
                 + ki[i] * integral[i]
-                for i in range(TASK_SIZE)
+                for i in range(size)
             ]
-            # tau = J^T F_PID (eq. 16), with J's rows after X and dX/dt in `kinematics`.
-            force_x, force_y, force_theta = wrench
-            num_velocities = self._num_velocities
-            row_x, row_y, row_theta = (
-                2 * TASK_SIZE + axis * num_velocities for axis in range(TASK_SIZE)
-            )
-            torque = [
-                kinematics[row_x + j] * force_x
-                + kinematics[row_y + j] * force_y
-                + kinematics[row_theta + j] * force_theta
-                for j in range(num_velocities)
-            ]
+            torque = self._transpose_product(kinematics, wrench)  # tau = J^T F_PID (eq. 16)
             if not self._actuators_in_joint_order:
                 torque = (self._actuation_from_generalized @ np.array(torque)).tolist()
             values = torque if T is float else [t.value() for t in torque]
@@ -232,7 +252,7 @@ def CartesianPidLaw_(T):
                 return torque, error, error
             torque = np.array(torque)
             clipped = self._clip(torque)
-            jacobian = np.array(kinematics[2 * TASK_SIZE :]).reshape(TASK_SIZE, num_velocities)
+            jacobian = np.array(kinematics[2 * size :]).reshape(size, self._num_velocities)
             rate = self._integral_rate(error, clipped - torque, jacobian)
             return clipped.tolist(), rate.tolist(), error
 
@@ -264,7 +284,7 @@ def CartesianPidLaw_(T):
             to_wrench = np.linalg.pinv(self._actuation_from_generalized @ jacobian_value.T)
             wrench_excess = to_wrench @ excess
             rate = np.array(error, dtype=object if T is not float else float)
-            for i in range(3):
+            for i in range(self._size):
                 if self._ki[i] > 0:
                     rate[i] = error[i] + wrench_excess[i] / (self._ki[i] * self._tracking_time[i])
             return rate
@@ -287,6 +307,40 @@ def CartesianPidLaw_(T):
 CartesianPidLaw = CartesianPidLaw_[None]
 
 
+def _transpose_product(size: int, num_velocities: int) -> Callable[[list, list], list]:
+    """``function(kinematics, wrench) -> tau``, tau_j = sum_i J_ij F_i, as one line of code.
+
+    J (size x num_velocities) is read row by row after X and dX/dt in the kinematics vector
+    [X; dX/dt; J]. The sum runs axis after axis (J_xj F_x + J_yj F_y + J_thetaj F_theta for
+    the arm), on Python floats or AutoDiffXd alike. Generated once for the task's size: a
+    written-out sum of constant indices costs a third of a loop over the axes.
+    """
+    first = 2 * size  # where J starts
+    sums = (
+        " + ".join(f"k[{first + axis * num_velocities + j}] * w[{axis}]" for axis in range(size))
+        for j in range(num_velocities)
+    )
+    source = f"lambda k, w: [{', '.join(sums)}]"
+    return eval(compile(source, f"<J^T F, {size} x {num_velocities}>", "eval"), {})
+
+
+def _check_frame_actuated(plant, frame_name: str) -> None:
+    """Raises ValueError unless every joint that moves `frame_name` has an actuator."""
+    body_index = plant.GetFrameByName(frame_name).body().index()
+    actuated = {
+        plant.get_joint_actuator(index).joint().index() for index in plant.GetJointActuatorIndices()
+    }
+    for joint_index in plant.GetJointIndices():
+        joint = plant.get_joint(joint_index)
+        if joint.num_velocities() == 0 or joint_index in actuated:
+            continue
+        if body_index in plant.GetBodiesKinematicallyAffectedBy([joint_index]):
+            raise ValueError(
+                f"the Cartesian PID needs a fully actuated arm: joint '{joint.name()}' moves "
+                f"'{frame_name}' but has no actuator"
+            )
+
+
 class CartesianPid(Diagram):
     """Cartesian PID with joint torques through the Jacobian transpose (paper eq. 14-16).
 
@@ -294,9 +348,14 @@ class CartesianPid(Diagram):
         F_PID = Kp ec + Kd dec/dt + Ki integral(ec)                      (eq. 14)
         tau = clip(J(q)^T F_PID, -effort_limit, effort_limit)            (eq. 16)
 
-    X = (x, y, theta) of the controlled frame, its rate J v and J come from the
-    ``kinematics`` input: the output of a ``PlanarKinematics`` of the same plant and frame
-    (systems/planar_kinematics.py). The angle error is wrapped to [-pi, pi]. The commanded
+    X of the controlled frame, its rate J v and J come from the ``kinematics`` input: the
+    output of a ``PlanarKinematics`` of the same plant, frame and task space
+    (systems/planar_kinematics.py). The task space is given at construction: which
+    coordinates of the frame (TASK_COORDINATES: its origin's x, y, z and its rotation theta
+    about z) measured in which frame; by default (x, y, theta) in world, the planar arm. A
+    finger of a hand is controlled on (x, y) of its tip in a frame fixed at the face it
+    touches, and drives only its own joints (the fingers' torques are added). The angle
+    error is wrapped to [-pi, pi]. The commanded
     velocity is whatever the caller wires in; the project feeds dXd/dt only, so the
     admittance offset Xr is never differentiated (its derivative would carry the force
     noise). Torques are clipped to the actuators' effort limits read from the plant (the
@@ -331,22 +390,31 @@ class CartesianPid(Diagram):
         kd: float | Sequence[float],
         ki: float | Sequence[float],
         period: float = 0.0,
+        coordinates: Sequence[str] = PLANAR_COORDINATES,
+        expressed_in: str = "world",
     ) -> None:
         """
         Args:
-            plant: finalized MultibodyPlant of the arm (fully actuated).
+            plant: finalized MultibodyPlant (the arm, or a hand with its object).
             frame_name: the controlled frame (the fingertip contact point).
-            kp, kd, ki: diagonal gains on (x, y, theta): N/m, N s/m, N/(m s) and the
-                rotational equivalents. kp > 0, kd >= 0, ki >= 0.
+            kp, kd, ki: diagonal gains on X: N/m, N s/m, N/(m s) and the rotational
+                equivalents. kp > 0, kd >= 0, ki >= 0.
             period: 0 for a continuous controller, otherwise its sampling period in s.
+            coordinates: the task vector X, names among TASK_COORDINATES.
+            expressed_in: the frame X is measured and expressed in (fixed in world).
         """
         Diagram.__init__(self)
-        self._kinematics = PlanarFrameKinematics(plant, frame_name)
+        self._kinematics = PlanarFrameKinematics(
+            plant, frame_name, coordinates=coordinates, expressed_in=expressed_in
+        )
+        _check_frame_actuated(plant, frame_name)
         builder = DiagramBuilder()
         law = builder.AddNamedSystem(
-            "law", CartesianPidLaw(plant, kp=kp, kd=kd, ki=ki, period=period)
+            "law",
+            CartesianPidLaw(plant, kp=kp, kd=kd, ki=ki, period=period, coordinates=coordinates),
         )
         self._law = law
+        self._actuation_from_generalized = law._actuation_from_generalized
         self._integrator = None
         for port in (
             law.commanded_position_input,
@@ -356,8 +424,9 @@ class CartesianPid(Diagram):
             builder.ExportInput(port, port.get_name())
         if law.period == 0.0:
             num_actuators = plant.num_actuated_dofs()
-            split = builder.AddNamedSystem("split", Demultiplexer([num_actuators, 3]))
-            integrator = builder.AddNamedSystem("integral", Integrator(3))
+            size = self._kinematics.num_coordinates
+            split = builder.AddNamedSystem("split", Demultiplexer([num_actuators, size]))
+            integrator = builder.AddNamedSystem("integral", Integrator(size))
             builder.Connect(law.actuation_and_integral_rate_output, split.get_input_port())
             builder.Connect(split.get_output_port(1), integrator.get_input_port())
             builder.Connect(integrator.get_output_port(), law.integral_input)
@@ -385,6 +454,11 @@ class CartesianPid(Diagram):
         return self._law.period
 
     @property
+    def coordinates(self) -> tuple[str, ...]:
+        """The task coordinates, in the order of X and of the gains."""
+        return self._law.coordinates
+
+    @property
     def effort_limits(self) -> np.ndarray:
         return self._law.effort_limits
 
@@ -393,7 +467,7 @@ class CartesianPid(Diagram):
 
         Args:
             context: this PID's context (``GetMyMutableContextFromRoot`` in a diagram).
-            integral: z, 3 values.
+            integral: z, one value per task coordinate.
         """
         integral = np.asarray(integral, dtype=float)
         if self._integrator is not None:
@@ -410,11 +484,21 @@ class CartesianPid(Diagram):
     def holding_integral(self, state, generalized_force) -> np.ndarray:
         """The integral at which, with zero error, the PID applies `generalized_force`.
 
-        Used to start the arm at rest held against gravity: solves J^T Ki z = tau.
+        Used to start the arm at rest held against gravity: solves J^T Ki z = tau. When J
+        is not square (a finger of a hand, whose J has a column per joint of the plant),
+        over the actuated joints in the least-squares sense: exact for the joints that
+        move the frame, the others being other PIDs' to hold.
         """
         kinematics = self._kinematics
         kinematics.set_state(state)
-        wrench = np.linalg.solve(kinematics.jacobian().T, generalized_force)
+        jacobian = kinematics.jacobian()
+        if jacobian.shape[0] == jacobian.shape[1] == len(self._actuation_from_generalized):
+            wrench = np.linalg.solve(jacobian.T, generalized_force)
+        else:
+            selection = self._actuation_from_generalized
+            wrench = np.linalg.lstsq(
+                selection @ jacobian.T, selection @ np.asarray(generalized_force), rcond=None
+            )[0]
         ki = self._law.gains["ki"]
         if np.any(ki == 0):
             raise ValueError("holding the arm through the integral needs ki > 0 on all axes")

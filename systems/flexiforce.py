@@ -116,6 +116,17 @@ def FlexiForceSensor_(T):
         ``filter_time_constant``, ``saturation_force``) describe the FlexiForce circuit
         whatever the kind.
 
+        Sampled readout (``period`` h > 0): the chain as a digital controller reads it, for
+        loops that run in discrete time (a discrete MultibodyPlant whose contact force is
+        held over each step). The state V is a discrete state, advanced at each sample k by
+        the exact zero-order-hold solution of the RC low-pass over one period::
+
+            V[k+1] = V_s(F[k]) + (V[k] - V_s(F[k])) exp(-h / tau)
+
+        and the output is the calibrated reading of the held V[k] (plus the noise): the ADC
+        sample at t_k, which sees the force up to the previous sample (one period of delay).
+        The law is the same; only the integration of the filter differs.
+
         The constants are fixed at construction (not context parameters): the callbacks
         run tens of thousands of times per simulation and use precomputed Python floats.
 
@@ -141,6 +152,7 @@ def FlexiForceSensor_(T):
             filter_cutoff_hz: float = 5000.0,
             linearity_error: float = 0.0,
             full_scale_force: float = 100.0,
+            period: float = 0.0,
             converter=None,
         ) -> None:
             """Declares the ports and the filter state.
@@ -161,6 +173,8 @@ def FlexiForceSensor_(T):
                     fraction of ``full_scale_force`` (-0.25 < e < 0.25; datasheet < 0.03).
                 full_scale_force: F_fs, the calibrated range's full scale, N (> 0); only
                     shapes the linearity bow.
+                period: 0 for the continuous filter, otherwise the sampling period of the
+                    readout in s (the filter is then advanced exactly over each period).
                 converter: scalar converter, supplied by TemplateSystem.
 
             Raises:
@@ -197,6 +211,8 @@ def FlexiForceSensor_(T):
             )
             f_fs = _require_finite("full_scale_force", full_scale_force, "> 0 N")
             _check(f_fs > 0.0, "full_scale_force", full_scale_force, "> 0 N")
+            h = _require_finite("period", period, ">= 0 s (0 = continuous)")
+            _check(h >= 0.0, "period", period, ">= 0 s (0 = continuous)")
 
             # Kept for _construct_copy (scalar conversion).
             self._construct_args = dict(
@@ -209,8 +225,10 @@ def FlexiForceSensor_(T):
                 filter_cutoff_hz=f_c,
                 linearity_error=e_lin,
                 full_scale_force=f_fs,
+                period=h,
             )
             self._kind = kind
+            self._period = h
             # Precomputed constants (Python floats).
             self._v_offset = v_offset  # V, unloaded output
             self._gain = -v_drive * r_f * c  # V/N
@@ -220,6 +238,8 @@ def FlexiForceSensor_(T):
             self._inv_tau = 2.0 * math.pi * f_c  # 1/s
             self._inv_full_scale = 1.0 / f_fs  # 1/N
             self._bow = 4.0 * e_lin * f_fs  # N, so the mid-range bow is e_lin * f_fs
+            # Fraction of the filter's state left after one sampling period.
+            self._decay = math.exp(-h * self._inv_tau) if h > 0 else 0.0
             if T is float:
                 self._max, self._min = max, min
             else:
@@ -233,6 +253,18 @@ def FlexiForceSensor_(T):
                     1,
                     self._calc_ideal_output,
                     prerequisites_of_calc={self.contact_force_input.ticket()},
+                )
+                return
+            if h > 0.0:
+                self._state_index = self.DeclareDiscreteState(BasicVector_[T]([v_offset]))
+                self.DeclarePeriodicDiscreteUpdateEvent(
+                    period_sec=h, offset_sec=0.0, update=self._discrete_update
+                )
+                self.measured_force_output = self.DeclareVectorOutputPort(
+                    "measured_force",
+                    1,
+                    self._calc_sampled_output,
+                    prerequisites_of_calc={self.xd_ticket(), self.noise_input.ticket()},
                 )
                 return
             self.DeclareContinuousState(BasicVector_[T]([v_offset]))
@@ -261,8 +293,9 @@ def FlexiForceSensor_(T):
             return self._min(self._v_offset + self._gain * force, self._v_rail)
 
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
-            """dV/dt = (V_s(F) - V) / tau (the ideal kind has no state)."""
-            if self._kind == "ideal":
+            """dV/dt = (V_s(F) - V) / tau (the ideal kind and the sampled readout have no
+            continuous state)."""
+            if self._kind == "ideal" or self._period > 0.0:
                 return
             if T is float:
                 force = self.contact_force_input.Eval(context).item()
@@ -285,6 +318,21 @@ def FlexiForceSensor_(T):
             noise = self.noise_input.Eval(context)[0]
             output.SetAtIndex(0, (voltage - self._v_offset) * self._inv_gain + noise)
 
+        def _discrete_update(self, context, discrete_state) -> None:
+            """V[k+1] = V_s(F[k]) + (V[k] - V_s(F[k])) exp(-h / tau)."""
+            force = self.contact_force_input.Eval(context)[0]
+            voltage = context.get_discrete_state(self._state_index).GetAtIndex(0)
+            static = self._static_voltage(force)
+            discrete_state.get_mutable_vector(self._state_index).SetAtIndex(
+                0, static + (voltage - static) * self._decay
+            )
+
+        def _calc_sampled_output(self, context, output) -> None:
+            """F_meas = (V[k] - V_offset) / k + n."""
+            voltage = context.get_discrete_state(self._state_index).GetAtIndex(0)
+            noise = self.noise_input.Eval(context)[0]
+            output.SetAtIndex(0, (voltage - self._v_offset) * self._inv_gain + noise)
+
         def _calc_ideal_output(self, context, output) -> None:
             """measured_force = contact_force."""
             output.SetFromVector(self.contact_force_input.Eval(context))
@@ -294,6 +342,11 @@ def FlexiForceSensor_(T):
         def kind(self) -> str:
             """``"flexiforce"`` or ``"ideal"``."""
             return self._kind
+
+        @property
+        def period(self) -> float:
+            """Sampling period of the readout, s (0 = the continuous filter)."""
+            return self._period
 
         @property
         def filter_time_constant(self) -> float:

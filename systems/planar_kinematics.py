@@ -1,8 +1,13 @@
-"""Planar task-space kinematics of a frame, taken from a MultibodyPlant (paper eq. 1-2).
+"""Task-space kinematics of a frame, taken from a MultibodyPlant (paper eq. 1-2).
 
 The task vector of a planar arm moving in the world x-y plane is X = (x, y, theta): the
-position of a frame's origin and its rotation about world z. X = h(q) and the Jacobian
-J(q) = dh/dq come from the plant's own kinematics, so another URDF works unchanged:
+position of a frame's origin and its rotation about world z. A fingertip of a planar hand
+is controlled in 2-D: X = (x, y) of its tip in a frame fixed at the face it touches (x
+along the face's inward normal). Both are a choice of COORDINATES among the position of a
+frame F's origin in a frame E (x, y, z) and F's rotation theta about E's z axis, given at
+construction (TASK_COORDINATES; by default (x, y, theta) in world). X = h(q) and the
+Jacobian J(q) = dh/dq come from the plant's own kinematics, so another model works
+unchanged:
 
 * ``PlanarFrameKinematics`` asks the plant (any scalar type) through a private context;
 * ``generate_planar_kinematics`` takes the same quantities once from the plant's symbolic
@@ -31,6 +36,7 @@ from pydrake.systems.scalar_conversion import TemplateSystem
 from admittance.systems.expression_code import compile_expressions
 
 __all__ = [
+    "TASK_COORDINATES",
     "PlanarFrameKinematics",
     "PlanarKinematics",
     "PlanarKinematics_",
@@ -41,8 +47,15 @@ __all__ = [
     "wrap_angle",
 ]
 
-# The size of the task vector X = (x, y, theta).
+# The size of the planar arm's task vector X = (x, y, theta).
 TASK_SIZE = 3
+# The arm's task vector, the default.
+PLANAR_COORDINATES = ("x", "y", "theta")
+#: The coordinates a task vector may pick: the position of the frame's origin in E and
+#: its rotation about E's z axis.
+TASK_COORDINATES = ("x", "y", "z", "theta")
+# Their rows in a spatial velocity (wx, wy, wz, vx, vy, vz).
+_SPATIAL_ROW = {"x": 3, "y": 4, "z": 5, "theta": 2}
 
 
 def wrap_angle(angle):
@@ -56,52 +69,90 @@ def wrap_angle(angle):
     return atan2(np.sin(angle), np.cos(angle))
 
 
-def kinematics_size(num_velocities: int) -> int:
-    """The length of the ``kinematics`` vector: X (3), dX/dt (3) and J (3 x nv)."""
-    return 2 * TASK_SIZE + TASK_SIZE * num_velocities
+def kinematics_size(num_velocities: int, size: int = TASK_SIZE) -> int:
+    """The length of the ``kinematics`` vector: X (m), dX/dt (m) and J (m x nv)."""
+    return 2 * size + size * num_velocities
 
 
-def split_kinematics(values, num_velocities: int):
+def split_kinematics(values, num_velocities: int, size: int = TASK_SIZE):
     """(X, dX/dt, J) from a ``kinematics`` vector [X; dX/dt; J row by row] (numpy views)."""
     values = np.asarray(values)
     return (
-        values[:TASK_SIZE],
-        values[TASK_SIZE : 2 * TASK_SIZE],
-        values[2 * TASK_SIZE :].reshape(TASK_SIZE, num_velocities),
+        values[:size],
+        values[size : 2 * size],
+        values[2 * size :].reshape(size, num_velocities),
     )
 
 
-def _check_frame(plant, frame_name: str) -> None:
+def task_coordinates(coordinates) -> tuple[str, ...]:
+    """`coordinates` as a tuple; raises ValueError unless distinct TASK_COORDINATES."""
+    coordinates = tuple(coordinates)
+    if (
+        not coordinates
+        or len(set(coordinates)) != len(coordinates)
+        or any(c not in TASK_COORDINATES for c in coordinates)
+    ):
+        raise ValueError(
+            f"coordinates must be distinct names among {TASK_COORDINATES}, got {coordinates}"
+        )
+    return coordinates
+
+
+def _check_frame(plant, frame_name: str, expressed_in: str = "world") -> None:
     if not plant.is_finalized():
         raise ValueError("the plant must be finalized before its kinematics are used")
-    if not plant.HasFrameNamed(frame_name):
-        raise ValueError(f"the plant has no frame named '{frame_name}'")
+    for name in (frame_name, expressed_in):
+        if not plant.HasFrameNamed(name):
+            raise ValueError(f"the plant has no frame named '{name}'")
+
+
+def _task_vector(coordinates, matrix, theta) -> list:
+    """X from a pose [R | p] (3 x 4) and its angle about z, in the order of `coordinates`."""
+    return [theta if c == "theta" else matrix["xyz".index(c), 3] for c in coordinates]
 
 
 class PlanarFrameKinematics:
-    """X = (x, y, theta) of a frame and its 3 x nv Jacobian, from a plant's state.
+    """A task vector X of a frame and its m x nv Jacobian, from a plant's state.
+
+    By default X = (x, y, theta) of the frame in world (the planar arm); ``coordinates``
+    picks others among TASK_COORDINATES and ``expressed_in`` the frame E they are measured
+    and expressed in (one that does not move, e.g. welded to the world).
 
     Holds a private context of ``plant`` (of any scalar type), so it can be used inside a
     LeafSystem's calc without touching the diagram's plant context.
     """
 
-    def __init__(self, plant, frame_name: str) -> None:
-        _check_frame(plant, frame_name)
+    def __init__(
+        self,
+        plant,
+        frame_name: str,
+        *,
+        coordinates=PLANAR_COORDINATES,
+        expressed_in: str = "world",
+    ) -> None:
+        _check_frame(plant, frame_name, expressed_in)
         self.plant = plant
         self.frame_name = frame_name
         self.frame = plant.GetFrameByName(frame_name)
+        self.coordinates = task_coordinates(coordinates)
+        self.expressed_in = expressed_in
+        self.num_coordinates = len(self.coordinates)
+        #: Index of theta in X (None if X has no angle).
+        self.angle_index = self.coordinates.index("theta") if "theta" in self.coordinates else None
         self.num_positions = plant.num_positions()
         self.num_velocities = plant.num_velocities()
         self._context = plant.CreateDefaultContext()
-        self._world = plant.world_frame()
+        self._world = plant.GetFrameByName(expressed_in)  # E: world for the arm
         self._origin = np.zeros(3)
+        self._planar = self.coordinates == PLANAR_COORDINATES
+        self._rows = [_SPATIAL_ROW[c] for c in self.coordinates]
 
     def set_state(self, state) -> None:
         """Sets the private context's positions and velocities from [q; v]."""
         self.plant.SetPositionsAndVelocities(self._context, state)
 
     def pose(self):
-        """X = (x, y, theta) at the last state set."""
+        """X at the last state set: (x, y, theta) by default."""
         X_WF = self.plant.CalcRelativeTransform(self._context, self._world, self.frame)
         matrix = X_WF.GetAsMatrix34()  # [R | p], one copy out of the plant
         cos_theta, sin_theta = matrix[0, 0], matrix[1, 0]
@@ -110,10 +161,12 @@ class PlanarFrameKinematics:
             if isinstance(cos_theta, float)
             else atan2(sin_theta, cos_theta)
         )
-        return np.array([matrix[0, 3], matrix[1, 3], theta])
+        if self._planar:
+            return np.array([matrix[0, 3], matrix[1, 3], theta])
+        return np.array(_task_vector(self.coordinates, matrix, theta))
 
     def jacobian(self):
-        """J (3 x nv): rows d(x, y, theta)/dt per unit generalized velocity."""
+        """J (m x nv): rows dX/dt per unit generalized velocity."""
         J_spatial = self.plant.CalcJacobianSpatialVelocity(
             self._context,
             JacobianWrtVariable.kV,
@@ -123,10 +176,10 @@ class PlanarFrameKinematics:
             self._world,
         )
         # Spatial velocity rows are (wx, wy, wz, vx, vy, vz).
-        return J_spatial[[3, 4, 2], :]
+        return J_spatial[self._rows, :]
 
     def position(self):
-        """The frame's origin in world, p_WF (3,), at the last state set."""
+        """The frame's origin in E (world by default), p_EF (3,), at the last state set."""
         return self.plant.CalcPointsPositions(self._context, self.frame, self._origin, self._world)[
             :, 0
         ]
@@ -139,7 +192,9 @@ class PlanarFrameKinematics:
         return np.concatenate([self.pose(), velocity, jacobian.reshape(-1)])
 
 
-def generate_planar_kinematics(plant, frame_name: str) -> Callable:
+def generate_planar_kinematics(
+    plant, frame_name: str, *, coordinates=PLANAR_COORDINATES, expressed_in: str = "world"
+) -> Callable:
     """The ``kinematics`` vector of `frame_name` as generated float code.
 
     The plant's symbolic copy (``plant.ToSymbolic()``) is evaluated at symbolic positions q
@@ -148,14 +203,15 @@ def generate_planar_kinematics(plant, frame_name: str) -> Callable:
     expressions of X, J v and J are compiled by ``compile_expressions``.
 
     Returns:
-        ``function(state) -> tuple`` of ``kinematics_size(nv)`` floats, for a state
+        ``function(state) -> tuple`` of ``kinematics_size(nv, m)`` floats, for a state
         sequence [q; v] of floats.
 
     Raises:
         ValueError: the plant is not finalized or has no such frame.
         NotImplementedError: the plant's kinematics use an expression with no float code.
     """
-    _check_frame(plant, frame_name)
+    _check_frame(plant, frame_name, expressed_in)
+    coordinates = task_coordinates(coordinates)
     symbolic = plant.ToSymbolic()
     context = symbolic.CreateDefaultContext()
     q = MakeVectorVariable(plant.num_positions(), "q")
@@ -163,13 +219,14 @@ def generate_planar_kinematics(plant, frame_name: str) -> Callable:
     symbolic.SetPositions(context, q)
     symbolic.SetVelocities(context, v)
     frame = symbolic.GetFrameByName(frame_name)
-    world = symbolic.world_frame()
+    world = symbolic.GetFrameByName(expressed_in)  # E: world for the arm
     matrix = symbolic.CalcRelativeTransform(context, world, frame).GetAsMatrix34()
     J_spatial = symbolic.CalcJacobianSpatialVelocity(
         context, JacobianWrtVariable.kV, frame, np.zeros(3), world, world
     )
-    jacobian = J_spatial[[3, 4, 2], :]
-    pose = [matrix[0, 3], matrix[1, 3], symbolic_atan2(matrix[1, 0], matrix[0, 0])]
+    jacobian = J_spatial[[_SPATIAL_ROW[c] for c in coordinates], :]
+    theta = symbolic_atan2(matrix[1, 0], matrix[0, 0]) if "theta" in coordinates else None
+    pose = _task_vector(coordinates, matrix, theta)
     velocity = [sum(row[j] * v[j] for j in range(len(v))) for row in jacobian]  # J v
     expressions = [*pose, *velocity, *jacobian.reshape(-1)]
     return compile_expressions(expressions, [*q, *v], name=f"{frame_name}_kinematics")
@@ -181,10 +238,11 @@ def PlanarKinematics_(T):
         """The task-space kinematics of a frame of a plant (paper eq. 1-2).
 
             X = h(q) = (x, y, theta)      the frame's origin in world x-y, its angle about z
-            dX/dt = J(q) v,  J = dh/dq    (3 x nv, with respect to the velocities v)
+            dX/dt = J(q) v,  J = dh/dq    (m x nv, with respect to the velocities v)
 
-        output as one vector ``kinematics`` = [X; dX/dt; J row by row], of length
-        6 + 3 nv (``split_kinematics`` takes it apart). It is computed once per context and
+        or the other ``coordinates`` of the frame in the frame ``expressed_in``, output as
+        one vector ``kinematics`` = [X; dX/dt; J row by row], of length 2 m + m nv
+        (``split_kinematics`` takes it apart). It is computed once per context and
         read by every system that needs the frame's motion (the Cartesian PID, the wall).
 
         For double the values come from float code generated from the plant's symbolic
@@ -208,33 +266,40 @@ def PlanarKinematics_(T):
             *,
             frame_name: str = "fingertip",
             generated: bool = True,
+            coordinates=PLANAR_COORDINATES,
+            expressed_in: str = "world",
             converter=None,
         ) -> None:
             """
             Args:
-                plant: finalized MultibodyPlant_[T] of the arm.
+                plant: finalized MultibodyPlant_[T] (the arm, or a hand with its object).
                 frame_name: the frame whose motion is output (the fingertip contact point).
                 generated: (double only) evaluate generated code; False asks the plant
                     through its bindings on every evaluation (the reference path, slower).
+                coordinates: the task vector X, names among TASK_COORDINATES.
+                expressed_in: the frame X is measured and expressed in (fixed in world).
             """
             LeafSystem_[T].__init__(self, converter=converter)
-            _check_frame(plant, frame_name)
+            _check_frame(plant, frame_name, expressed_in)
             self._plant = plant
             self._frame_name = frame_name
+            self._coordinates = task_coordinates(coordinates)
+            self._expressed_in = expressed_in
             self._generated = bool(generated)
             self._num_positions = plant.num_positions()
             self._num_velocities = plant.num_velocities()
             num_states = self._num_positions + self._num_velocities
             self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", num_states)
+            task = dict(coordinates=self._coordinates, expressed_in=expressed_in)
             if T is float and self._generated:
-                self._function = generate_planar_kinematics(plant, frame_name)
+                self._function = generate_planar_kinematics(plant, frame_name, **task)
                 calc = self._CalcGenerated
             else:
-                self._kinematics = PlanarFrameKinematics(plant, frame_name)
+                self._kinematics = PlanarFrameKinematics(plant, frame_name, **task)
                 calc = self._CalcFromPlant
             self.kinematics_output = self.DeclareVectorOutputPort(
                 "kinematics",
-                kinematics_size(self._num_velocities),
+                kinematics_size(self._num_velocities, len(self._coordinates)),
                 calc,
                 prerequisites_of_calc={self.estimated_state_input.ticket()},
             )
@@ -245,6 +310,8 @@ def PlanarKinematics_(T):
                 other._plant.ToScalarType[T](),
                 frame_name=other._frame_name,
                 generated=other._generated,
+                coordinates=other._coordinates,
+                expressed_in=other._expressed_in,
                 converter=converter,
             )
 
@@ -255,6 +322,11 @@ def PlanarKinematics_(T):
         @property
         def num_velocities(self) -> int:
             return self._num_velocities
+
+        @property
+        def coordinates(self) -> tuple[str, ...]:
+            """The task coordinates, in the order of X."""
+            return self._coordinates
 
         def _not_finite(self, context) -> RuntimeError:
             # Say so here, rather than let the plant or the generated code meet it.

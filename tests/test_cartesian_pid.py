@@ -345,6 +345,14 @@ def test_the_pid_needs_one_actuator_per_joint(order):
         CartesianPid(plant, kp=KP, kd=KD, ki=KI)
 
 
+def test_every_joint_that_moves_the_frame_needs_an_actuator():
+    """Two actuators are as many as (x, y) has coordinates, but joint3 also moves the
+    fingertip and has none: the torque J^T F_PID asks of it would never be applied."""
+    plant = _arm_with_transmissions([0, 1])
+    with pytest.raises(ValueError, match="joint 'joint3' moves 'fingertip' but has no actuator"):
+        CartesianPid(plant, kp=KP[:2], kd=KD[:2], ki=KI[:2], coordinates=("x", "y"))
+
+
 def test_actuation_follows_the_actuator_order_not_the_joint_order():
     """With the URDF's transmissions listed in reverse, actuator k drives joint 3 - k: the
     output is B^T tau, the torques in actuator order, each clipped to its own limit."""

@@ -22,6 +22,12 @@ import pytest
 COMMAND = [sys.executable, "-m", "admittance.diagrams.app.cli"]
 # A stage of a run takes seconds; this only bounds a test whose trigger never comes.
 DEADLINE = 180.0
+# Two short grasps (about 1.5 s each), one per controller, on two workers.
+GRASP_COMPARE = [
+    "grasp-compare",
+    *("--set", "duration=1.2", "--size-errors", "0", "--stiffness-errors", "1"),
+    *("--workers", "2"),
+]
 
 
 def _start(arguments: list[str], cwd: Path) -> subprocess.Popen:
@@ -143,6 +149,10 @@ def _group_ends(group: int) -> list[str]:
         (["compare", "--set", "duration=1.5", "--workers", "2"], "worker start-up"),
         # While the worker processes run the controllers (after the first one finished).
         (["compare", "--set", "duration=1.5", "--workers", "2"], "[1/5]"),
+        # grasp-compare on the same runner: while its workers load Drake, and while they run
+        # its points (after the first finished).
+        (GRASP_COMPARE, "worker start-up"),
+        (GRASP_COMPARE, "[1/2]"),
         # Between the stages of the stability analysis.
         (["stability", "--quick", "--no-trajectory"], "stability map 1 of 4"),
     ],
@@ -152,6 +162,8 @@ def _group_ends(group: int) -> list[str]:
         "writing",
         "compare-worker-start-up",
         "compare-workers",
+        "grasp-compare-worker-start-up",
+        "grasp-compare-workers",
         "stability-maps",
     ],
 )

@@ -21,12 +21,13 @@ NOTEBOOKS = sorted(NOTEBOOK_DIR.glob("*.ipynb"))
 CELL_TIMEOUT = 300
 
 
-def test_the_five_notebooks_are_there_and_no_other():
+def test_the_six_notebooks_are_there_and_no_other():
     """The notebooks README.md lists, each run below (a new one must be listed here)."""
     assert [path.name for path in NOTEBOOKS] == [
         "build_your_own_loop.ipynb",
         "compare_controllers.ipynb",
         "flexiforce_sensor.ipynb",
+        "grasp.ipynb",
         "reproduce_paper.ipynb",
         "stability_analysis.ipynb",
     ]

@@ -4,6 +4,8 @@
     admittance stability [SCENARIO] [--set KEY=VALUE ...] [--out DIR] [--force] [--quick]
     admittance diagram   [SCENARIO] [--set KEY=VALUE ...] --out FILE
     admittance compare   [SCENARIO] [--set KEY=VALUE ...] [--controllers K,...] [--out DIR]
+    admittance grasp-compare [SCENARIO] [--set KEY=VALUE ...] [--size-errors M,...]
+                         [--stiffness-errors R,...] [--controllers K,...] [--out DIR]
     admittance bench     [SCENARIO] [--set KEY=VALUE ...] [--repeat N] [--json FILE]
                          [--before FILE]
     admittance sweep     [SCENARIO] [--set KEY=VALUE ...] [--grid KEY=SPEC ...]
@@ -59,6 +61,7 @@ DRAKE_MODULES = (
     "pydrake.systems.framework",
     "pydrake.systems.primitives",
     "pydrake.systems.scalar_conversion",
+    "pydrake.trajectories",
 )
 
 EXIT_STATUS = """\
@@ -105,24 +108,46 @@ def _error(message: str) -> None:
     print(f"admittance: error: {message}", file=sys.stderr)
 
 
+def _arm_scenario(args: argparse.Namespace):
+    """The arm scenario of `args`; a grasp scenario is refused with one line."""
+    from admittance.diagrams.grasp_scenario import GraspScenario
+    from admittance.diagrams.scenario import ScenarioError, load_scenario
+
+    scenario = load_scenario(args.scenario, args.overrides)
+    if isinstance(scenario, GraspScenario):
+        raise ScenarioError(
+            f"scenario: '{args.scenario}' is a grasp scenario (kind: grasp); `admittance "
+            f"{args.command}` runs arm scenarios only (grasps: simulate, diagram, grasp-compare)"
+        )
+    return scenario
+
+
 # --- the subcommands ----------------------------------------------------------------------
 
 
 def _cmd_simulate(args: argparse.Namespace, progress) -> int:
     from admittance.diagrams.app.result_folder import check_output_dir, check_writable
-    from admittance.diagrams.app.simulate import summary, write_results
+    from admittance.diagrams.grasp_scenario import GraspScenario
     from admittance.diagrams.scenario import load_scenario
-    from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
+    from admittance.diagrams.simulation import SimulationDivergedError
 
     scenario = load_scenario(args.scenario, args.overrides)
+    # The run, its result folder, summary and replay, by the scenario's kind.
+    if isinstance(scenario, GraspScenario):
+        from admittance.diagrams.app.grasp_results import grasp_summary as summary
+        from admittance.diagrams.app.grasp_results import write_grasp_results as write_results
+        from admittance.diagrams.grasp_replay import write_grasp_meshcat_replay as replay
+        from admittance.diagrams.grasp_simulation import run_grasp as run
+    else:
+        from admittance.diagrams.app.simulate import summary, write_results
+        from admittance.diagrams.simulation import run_scenario as run
+        from admittance.diagrams.visualization import write_meshcat_replay as replay
     out = Path(args.out) if args.out else Path("results") / scenario.name
     check_output_dir(out, overwrite=args.force)
     if args.meshcat_html:
         check_writable(args.meshcat_html, "--meshcat-html")
     try:
-        result = run_scenario(
-            scenario, progress=progress.simulation(scenario.name, scenario.duration)
-        )
+        result = run(scenario, progress=progress.simulation(scenario.name, scenario.duration))
     except SimulationDivergedError as diverged:
         # Keep what was logged, marked failed (metrics.json: "failed": true).
         progress(f"writing the partial result to {out}/")
@@ -134,16 +159,16 @@ def _cmd_simulate(args: argparse.Namespace, progress) -> int:
     print(summary(result))
     print(folder.describe(out))
     if args.meshcat_html:
-        from admittance.diagrams.visualization import write_meshcat_replay
-
         progress(f"writing the Meshcat replay {args.meshcat_html}")
-        print(f"wrote {write_meshcat_replay(result, args.meshcat_html)} (Meshcat replay)")
+        print(f"wrote {replay(result, args.meshcat_html)} (Meshcat replay)")
     return 0
 
 
 def _cmd_diagram(args: argparse.Namespace, progress) -> int:
     from admittance.diagrams.app.result_folder import check_writable
     from admittance.diagrams.closed_loop import BuildClosedLoop
+    from admittance.diagrams.grasp import BuildGrasp
+    from admittance.diagrams.grasp_scenario import GraspScenario
     from admittance.diagrams.scenario import ScenarioError, load_scenario
     from admittance.diagrams.visualization import write_diagram_picture
 
@@ -152,7 +177,8 @@ def _cmd_diagram(args: argparse.Namespace, progress) -> int:
     if suffix not in (".svg", ".png", ".dot"):
         raise ScenarioError(f"--out {args.out}: unsupported picture format; use .svg, .png or .dot")
     check_writable(args.out)
-    loop = BuildClosedLoop(scenario)
+    grasp = isinstance(scenario, GraspScenario)
+    loop = BuildGrasp(scenario) if grasp else BuildClosedLoop(scenario)
     print(f"wrote {write_diagram_picture(loop.diagram, args.out)}")
     return 0
 
@@ -164,14 +190,14 @@ def _cmd_bench(args: argparse.Namespace, progress) -> int:
     from admittance.diagrams.app.bench_report import format_benchmark, load_benchmark_report
     from admittance.diagrams.app.result_folder import atomic_write_text, check_writable
     from admittance.diagrams.closed_loop import CheckScenarioStarts
-    from admittance.diagrams.scenario import ScenarioError, load_scenario
+    from admittance.diagrams.scenario import ScenarioError
 
     if not 1 <= args.repeat <= MAX_REPEAT:
         raise ScenarioError(
             f"--repeat {args.repeat}: must be an integer in [1, {MAX_REPEAT}] (each is a "
             "whole simulation)"
         )
-    scenario = load_scenario(args.scenario, args.overrides)
+    scenario = _arm_scenario(args)
     before = None
     if args.before:
         try:
@@ -218,10 +244,9 @@ def _cmd_compare(args: argparse.Namespace, progress) -> int:
     from admittance.diagrams.app.formatting import number
     from admittance.diagrams.app.result_folder import check_output_dir
     from admittance.diagrams.force_controllers import baseline_gains
-    from admittance.diagrams.scenario import load_scenario
 
     kinds = _controller_kinds(args.controllers)
-    scenario = load_scenario(args.scenario, args.overrides)
+    scenario = _arm_scenario(args)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_compare"
     check_output_dir(out, overwrite=args.force)
     scenario, runs = compare_controllers(
@@ -238,6 +263,50 @@ def _cmd_compare(args: argparse.Namespace, progress) -> int:
     return 0
 
 
+def _number_list(flag: str, text: str) -> list[float]:
+    from admittance.diagrams.scenario import ScenarioError
+
+    try:
+        return [float(item) for item in text.split(",") if item.strip()]
+    except ValueError:
+        raise ScenarioError(f"{flag} {text!r}: expected a comma list of numbers") from None
+
+
+def _cmd_grasp_compare(args: argparse.Namespace, progress) -> int:
+    from admittance.diagrams.app.grasp_compare import compare_grasps, format_grasp_table
+    from admittance.diagrams.app.result_folder import check_output_dir, result_folder
+    from admittance.diagrams.grasp_scenario import GRASP_CONTROLLER_KINDS, GraspScenario
+    from admittance.diagrams.scenario import ScenarioError, load_scenario
+
+    scenario = load_scenario(args.scenario, args.overrides)
+    if not isinstance(scenario, GraspScenario):
+        raise ScenarioError(f"scenario: '{args.scenario}' is not a grasp scenario (kind: grasp)")
+    out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_compare"
+    check_output_dir(out, overwrite=args.force)
+    controllers = (
+        [k.strip() for k in args.controllers.split(",")]
+        if args.controllers
+        else list(GRASP_CONTROLLER_KINDS)
+    )
+    rows = compare_grasps(
+        args.scenario,
+        args.overrides,
+        size_errors=_number_list("--size-errors", args.size_errors),
+        stiffness_errors=_number_list("--stiffness-errors", args.stiffness_errors),
+        controllers=controllers,
+        workers=args.workers,
+        progress=progress,
+    )
+    table = format_grasp_table(rows)
+    print(table, end="")
+    progress(f"writing {out}/")
+    with result_folder(out, overwrite=args.force) as folder:
+        folder.write_text("table.md", table)
+        folder.write_json("rows.json", rows)
+    print(folder.describe(out))
+    return 0
+
+
 def _cmd_stability(args: argparse.Namespace, progress) -> int:
     from admittance.diagrams.app.result_folder import check_output_dir
     from admittance.diagrams.app.stability_report import (
@@ -247,9 +316,8 @@ def _cmd_stability(args: argparse.Namespace, progress) -> int:
         write_report,
     )
     from admittance.diagrams.closed_loop import CheckScenarioStarts
-    from admittance.diagrams.scenario import load_scenario
 
-    scenario = load_scenario(args.scenario, args.overrides)
+    scenario = _arm_scenario(args)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_stability"
     axes = MapAxes.quick() if args.quick else MapAxes()
     check_output_dir(out, overwrite=args.force)
@@ -266,6 +334,7 @@ def _cmd_sweep(args: argparse.Namespace, progress) -> int:
     from admittance.diagrams.app.formatting import seconds
     from admittance.diagrams.app.sweep import WorkerDiedError, define_sweep, run_sweep
 
+    _arm_scenario(args)
     definition = define_sweep(
         args.scenario,
         args.overrides,
@@ -385,6 +454,35 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--force", action="store_true", help="replace an existing --out folder")
     compare.set_defaults(handler=_cmd_compare)
 
+    grasp_compare = _subcommand(
+        commands,
+        "grasp-compare",
+        "a grasp with position-only fingers against the paper's law, over brick size and "
+        "contact stiffness errors: held, crushed or lost",
+    )
+    grasp_compare.set_defaults(scenario="grasp_hold")
+    grasp_compare.add_argument(
+        "--size-errors",
+        default="-0.002,0,0.002",
+        metavar="M,...",
+        help="brick.size_error values, m (default -0.002,0,0.002)",
+    )
+    grasp_compare.add_argument(
+        "--stiffness-errors",
+        default="0.1,1,10",
+        metavar="R,...",
+        help="brick.stiffness_error values (default 0.1,1,10)",
+    )
+    grasp_compare.add_argument(
+        "--controllers", metavar="K,...", help="pid_only,optimal_admittance (default both)"
+    )
+    grasp_compare.add_argument("--workers", type=int, help="parallel runs (default: the cores)")
+    grasp_compare.add_argument("--out", help="output folder (default: results/<scenario>_compare)")
+    grasp_compare.add_argument(
+        "--force", action="store_true", help="replace an existing --out folder"
+    )
+    grasp_compare.set_defaults(handler=_cmd_grasp_compare)
+
     bench = _subcommand(
         commands,
         "bench",
@@ -496,6 +594,7 @@ def _run(args: argparse.Namespace) -> int:
         OutputPathError,
         completed_folders,
     )
+    from admittance.diagrams.app.sweep.runner import WorkerDiedError
     from admittance.diagrams.scenario import ScenarioError
     from admittance.diagrams.visualization import DiagramPictureError
 
@@ -506,6 +605,9 @@ def _run(args: argparse.Namespace) -> int:
     except (ScenarioError, OutputExistsError, OutputPathError, DiagramPictureError) as error:
         _error(str(error))
         return EXIT_INPUT_ERROR
+    except WorkerDiedError as error:  # compare, grasp-compare (sweep says what it kept)
+        _error(str(error))
+        return EXIT_RUN_FAILED
     except OSError as error:  # the system refused a write that was possible at the start
         where = f"{error.filename}: " if error.filename else ""
         _error(f"{where}{error.strerror or error}")

@@ -34,14 +34,22 @@ def _write_timeseries(result: SimulationResult, path: Path) -> None:
 
 
 def write_results(
-    result: SimulationResult, out_dir: str | Path, overwrite: bool = True
+    result: SimulationResult,
+    out_dir: str | Path,
+    overwrite: bool = True,
+    *,
+    figures: dict = FIGURES,
 ) -> ResultFolder:
-    """Writes a complete result folder atomically; returns what it wrote."""
+    """Writes a complete result folder atomically; returns what it wrote.
+
+    `figures` maps a file name to a function of the result that returns its axes (a grasp
+    passes its own; any result with ``columns()``, ``metrics`` and ``scenario`` is written).
+    """
     with result_folder(out_dir, overwrite=overwrite) as folder:
         folder.write_with("timeseries.csv", lambda path: _write_timeseries(result, path))
         folder.write_json("metrics.json", result.metrics)
         folder.write_text("scenario.yaml", scenario_to_yaml(result.scenario))
-        for name, plot in FIGURES.items():
+        for name, plot in figures.items():
             folder.write_figure(name, plot(result)[0].figure)
     return folder
 

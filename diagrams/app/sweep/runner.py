@@ -1,11 +1,13 @@
 """Simulations in worker processes: one point, a pool of workers, and Ctrl-C.
 
-``admittance sweep`` and ``admittance compare`` both run their points here:
+``admittance sweep``, ``admittance compare`` and ``admittance grasp-compare`` run their
+points here:
 
-* :func:`simulate_point` loads one scenario with its overrides and runs it; a run that
-  fails (it diverges, the integrator gives up, the scenario cannot start) comes back as a
-  failed :class:`PointRun` with a one-line reason, never as an exception, so one bad point
-  does not stop the others.
+* :func:`simulate_point` loads one scenario with its overrides and runs it (an arm's
+  ``run_scenario`` or a grasp's ``run_grasp``, by the scenario's kind); a run that fails (it
+  diverges, the integrator gives up, the scenario cannot start) comes back as a failed
+  :class:`PointRun` with a one-line reason, never as an exception, so one bad point does
+  not stop the others.
 * :func:`run_tasks` calls a task function on each task in worker processes (``local``: a
   ``ProcessPoolExecutor`` started with ``spawn``, a fresh interpreter with no forked Drake
   state; ``dask``: a ``dask.distributed`` cluster) and hands each result to a callback in
@@ -64,13 +66,15 @@ class PointRun:
     failure: str | None
     # The run's metrics.json dictionary (partial for a diverged run, empty without a run).
     metrics: dict
-    # Fr of the point's scenario, N (None if the scenario did not load).
-    force_reference: float | None
+    # Fr of the point's scenario, N: a float for the arm, one per finger for a grasp (None
+    # if the scenario did not load).
+    force_reference: float | list[float] | None
     # Seconds of Simulator.AdvanceTo (None without a run).
     wall_time: float | None
     # Build, run and metrics, s.
     point_time: float = 0.0
-    # time, force and reference_offset (the wall-normal Xr) arrays, with keep_series.
+    # time and force arrays (and, for the arm, reference_offset: the wall-normal Xr), with
+    # keep_series.
     series: dict | None = None
 
 
@@ -84,18 +88,23 @@ def simulate_point(
 ) -> PointRun:
     """Loads `scenario` (a built-in name or a YAML path) with `overrides` and runs it.
 
-    Runs in a worker process: it imports the simulation itself. Failures are returned as a
-    failed PointRun: SimulationDivergedError (with the partial run's metrics and series),
+    Runs in a worker process: it imports the simulation itself. An arm scenario runs with
+    ``run_scenario``, a grasp (``kind: grasp``) with ``run_grasp``. Failures are returned as
+    a failed PointRun: SimulationDivergedError (with the partial run's metrics and series),
     and ScenarioError or RuntimeError (the scenario cannot start, Drake refuses it).
     """
+    from admittance.diagrams.grasp_scenario import GraspScenario
+    from admittance.diagrams.grasp_simulation import run_grasp
     from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
 
     start = time.perf_counter()
     force_reference = None
+    arm = True
     try:
         loaded = load_scenario(scenario, overrides)
         force_reference = loaded.force_reference
-        result = run_scenario(loaded)
+        arm = not isinstance(loaded, GraspScenario)
+        result = run_scenario(loaded) if arm else run_grasp(loaded)
         failed, failure = False, None
     except SimulationDivergedError as diverged:
         result = diverged.result
@@ -111,11 +120,9 @@ def simulate_point(
         )
     series = None
     if keep_series:
-        series = {
-            "time": result.time,
-            "force": result.force,
-            "reference_offset": result.reference_offset[:, 0],
-        }
+        series = {"time": result.time, "force": result.force}
+        if arm:
+            series["reference_offset"] = result.reference_offset[:, 0]
     return PointRun(
         failed=failed,
         failure=failure,
