@@ -24,6 +24,7 @@ import yaml  # PyYAML, which pydrake.common.yaml is built on
 from pydrake.common.yaml import yaml_dump_typed, yaml_load, yaml_load_typed
 from pydrake.systems.analysis import SimulatorConfig
 
+from admittance.diagrams.safety_config import SafetyConfig
 from admittance.urdf import URDF_DIR
 
 __all__ = [
@@ -229,20 +230,6 @@ class ArmConfig:
         if path.is_absolute() or path.is_file():
             return path
         return URDF_DIR / path
-
-
-@dataclass
-class SafetyConfig:
-    # The safety layer (docs/safety.md): a bounded approach, a stiffness-aware Gamma and a
-    # sensor monitor around the paper's law; false = the paper's law as printed.
-    enabled: bool = False
-    # Ke_max, the stated upper bound on the wall's stiffness, N/m: it sets the approach
-    # speed and the damping along the normal.
-    max_stiffness: float = 1e6
-    # The factor between the reduced model's critical Gamma and the scheduled Gamma.
-    stability_margin: float = 3.0
-    # Damping ratio of the contact mode at max_stiffness (a first contact bounces below 0.19).
-    damping_ratio: float = 0.25
 
 
 @dataclass
