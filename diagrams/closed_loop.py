@@ -1,14 +1,16 @@
 """The paper's Fig. 1 as a Drake Diagram: arm, wall, sensor, optimal admittance and PID.
 
 Xd --(+)--> Xc --> CartesianPid --tau--> plant --state--> PlanarKinematics
-      ^ Xr              ^ X, dX/dt, J      ^ spatial force      | X, dX/dt, J
+      ^ Xr              ^ X, dX/dt, J      ^ -F J_x^T           | X, dX/dt, J
       |                 +------------------|--------------------+
       |                                CompliantWall <----------+
       +------- OptimalAdmittance <-- Fm -- sensor <-- F --+
                       ^ Fr
 
 The fingertip's kinematics are computed once per evaluation and read by the PID and the
-wall; with the ideal sensor (the paper's simulation) Fm is the wall's F itself.
+wall; the wall's force reaches the plant as generalized forces (the force at the fingertip
+through the Jacobian's x row); with the ideal sensor (the paper's simulation) Fm is the
+wall's F itself.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from pydrake.systems.primitives import (
 )
 
 from admittance.diagrams.force_controllers import WALL_NORMAL_AXIS, AddForceController
+from admittance.diagrams.safety import AddSafetyLayer, SafetyLayer
 from admittance.diagrams.scenario import (
     ArmConfig,
     FaultConfig,
@@ -195,7 +198,7 @@ def _AddWall(
     system.set_name("compliant_wall")
     builder.Connect(kinematics.kinematics_output, system.kinematics_input)
     builder.Connect(
-        system.applied_spatial_force_output, plant.get_applied_spatial_force_input_port()
+        system.generalized_force_output, plant.get_applied_generalized_force_input_port()
     )
     return system
 
@@ -298,6 +301,7 @@ def _AddForceLoop(
     *,
     analysis: bool,
     open_admittance_loop: bool,
+    plant: MultibodyPlant,
 ):
     """The force controller of scenario.controller_kind (its gains come from several
     sections: the admittance, the controller, the PID's Kp, the wall), closing Xr into Xc.
@@ -311,7 +315,12 @@ def _AddForceLoop(
         commanded = _AddCommandedPosition(builder, trajectory.desired_position_output, pid)
         builder.ExportInput(commanded.get_input_port(1), "reference_offset")
         return None
-    controller = AddForceController(builder, scenario)
+    if scenario.safety.enabled:
+        controller = AddSafetyLayer(
+            builder, scenario, plant=plant, pid=pid, trajectory=trajectory, analysis=analysis
+        )
+    else:
+        controller = AddForceController(builder, scenario)
     if controller is None:
         builder.Connect(trajectory.desired_position_output, pid.commanded_position_input)
         return None
@@ -374,6 +383,7 @@ def BuildClosedLoop(
         measured_force_output,
         analysis=analysis,
         open_admittance_loop=open_admittance_loop,
+        plant=plant,
     )
     loggers = {}
     if analysis:
@@ -389,6 +399,8 @@ def BuildClosedLoop(
         }
         if controller is not None:
             ports["reference_offset"] = controller.reference_offset_output
+        if isinstance(controller, SafetyLayer):
+            ports.update(controller.log_ports())
         loggers = _AddLoggers(builder, ports, scenario.logging)
 
     diagram = builder.Build()
@@ -587,7 +599,9 @@ def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
     if np.all(loop.pid.gains["ki"] > 0):
         loop.pid.set_integral(pid_context, loop.pid.holding_integral(state, -gravity))
 
-    if hasattr(loop.admittance, "set_initial_force_error"):
+    if isinstance(loop.admittance, SafetyLayer):
+        loop.admittance.initialize(context)
+    elif hasattr(loop.admittance, "set_initial_force_error"):
         # The reading before any injected sensor fault: the sensor's, or the true force.
         reading = (
             loop.wall.contact_force_output

@@ -21,6 +21,7 @@ from admittance.diagrams.closed_loop import (
     ClosedLoop,
     SolvePlanarInverseKinematics,
 )
+from admittance.diagrams.safety import SafetyLayer
 from admittance.diagrams.scenario import Scenario, ScenarioError
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
@@ -99,17 +100,24 @@ def FindContactEquilibrium(scenario: Scenario, *, tolerance: float = 1e-9) -> Eq
     loop.pid.set_integral(pid_context, np.divide(wrench, ki, out=np.zeros(3), where=ki > 0))
 
     admittance = loop.admittance
-    admittance_context = admittance.GetMyMutableContextFromRoot(context)
-    admittance.set_initial_force_error(admittance_context, [frozen.force_reference])
     offset = pose[WALL_NORMAL_AXIS] - center[WALL_NORMAL_AXIS]
-    admittance.set_integral(
-        admittance_context,
-        [offset / admittance.integral_gain[0] + frozen.admittance.alpha * frozen.force_reference],
-    )
+    if not isinstance(admittance, SafetyLayer):
+        admittance_context = admittance.GetMyMutableContextFromRoot(context)
+        admittance.set_initial_force_error(admittance_context, [frozen.force_reference])
+        admittance.set_integral(
+            admittance_context,
+            [
+                offset / admittance.integral_gain[0]
+                + frozen.admittance.alpha * frozen.force_reference
+            ],
+        )
     if frozen.sensor.kind != "ideal":
         loop.sensor.GetMyMutableContextFromRoot(context).SetContinuousState(
             [loop.sensor.static_output_voltage(frozen.force_reference)]
         )
+    if isinstance(admittance, SafetyLayer):
+        # The wall pushes the tip along -x with Fr: tau_ext = J^T (-Fr, 0, 0).
+        admittance.set_equilibrium(context, offset, -kinematics.jacobian().T @ wall_force)
 
     for _ in range(10):
         residual = _residual(diagram, context)

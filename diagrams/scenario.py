@@ -24,6 +24,7 @@ import yaml  # PyYAML, which pydrake.common.yaml is built on
 from pydrake.common.yaml import yaml_dump_typed, yaml_load, yaml_load_typed
 from pydrake.systems.analysis import SimulatorConfig
 
+from admittance.diagrams.safety_config import SafetyConfig
 from admittance.urdf import URDF_DIR
 
 __all__ = [
@@ -36,6 +37,7 @@ __all__ = [
     "LoggingConfig",
     "PidConfig",
     "Scenario",
+    "SafetyConfig",
     "ScenarioError",
     "SensorConfig",
     "StiffnessStep",
@@ -253,6 +255,7 @@ class Scenario:
     arm: ArmConfig = field(default_factory=ArmConfig)
     simulator: SimulatorConfig = field(default_factory=_default_simulator_config)
     logging: LoggingConfig = field(default_factory=LoggingConfig)
+    safety: SafetyConfig = field(default_factory=SafetyConfig)
     # Injected faults (reliability studies); none by default.
     faults: list[FaultConfig] = field(default_factory=list)
     # Name of the scenario (informational).

@@ -126,6 +126,10 @@ RANGES: dict[str, Range] = {
     ),
     # The metrics average over 1 s windows: at least ten samples in each.
     "logging.period": Range("[1e-5, 0.1]", or_zero=True, text="0 (every step) or in [1e-5, 0.1] s"),
+    "safety.max_stiffness": Range(f"(0, {MAX_STIFFNESS:g}]", "N/m"),
+    "safety.stability_margin": Range("[1, 100]"),
+    # A first contact bounces below 0.19 (systems/contact_model.py).
+    "safety.damping_ratio": Range("[0.2, 2]", "(a first contact bounces below 0.19)"),
 }
 
 # The PID's gains, each axis.
@@ -338,6 +342,31 @@ def _check_relations(s: Scenario) -> None:
         )
 
 
+def _check_safety(s: Scenario) -> None:
+    """What the safety layer needs of the rest of the scenario (safety.enabled)."""
+    if not s.safety.enabled:
+        return
+    _require(
+        s.controller_kind == "optimal_admittance",
+        "safety.enabled",
+        "used with the paper's controller (controller.kind optimal_admittance, "
+        "admittance.enabled true)",
+        s.safety.enabled,
+    )
+    _require(
+        math.isfinite(s.admittance.max_force),
+        "admittance.max_force",
+        "finite with safety.enabled (the layer keeps the force under it)",
+        s.admittance.max_force,
+    )
+    _require(
+        s.admittance.period == 0 and s.pid.period == 0,
+        "safety.enabled",
+        "used with the continuous controller (admittance.period and pid.period 0)",
+        s.safety.enabled,
+    )
+
+
 def validate(scenario: Scenario) -> Scenario:
     """Checks every key of `scenario`; raises ScenarioError naming the first bad key."""
     for key, allowed in RANGES.items():
@@ -346,4 +375,5 @@ def validate(scenario: Scenario) -> Scenario:
     _check_entries(scenario)
     _check_choices(scenario)
     _check_relations(scenario)
+    _check_safety(scenario)
     return scenario

@@ -12,6 +12,13 @@ from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 from pydrake.systems.framework import EventStatus
 
 from admittance.diagrams.closed_loop import BuildClosedLoop, ClosedLoop, SetInitialConditions
+from admittance.diagrams.safety import (
+    CapStepForSampledMonitor,
+    SafetyLayer,
+    fault_detection,
+    safety_columns,
+    safety_metrics,
+)
 from admittance.diagrams.scenario import Scenario
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
@@ -56,6 +63,9 @@ class SimulationResult:
     integrator_steps: int
     derivative_evaluations: int
     metrics: dict = field(default_factory=dict)
+    # The safety layer's logs (safety.enabled): time, fault_flags, trusted_force,
+    # observed_force, stiffness_estimate, gain_scale and its numbers at the start.
+    safety: dict | None = None
 
     @property
     def force_reference(self) -> float:
@@ -81,7 +91,7 @@ class SimulationResult:
             "force_reference": np.full_like(self.time, self.force_reference),
             "wall_position": self.wall_position,
             "wall_stiffness": self.wall_stiffness,
-        }
+        } | (safety_columns(self.safety) if self.safety is not None else {})
 
 
 def _time_mean(time: np.ndarray, values: np.ndarray) -> float:
@@ -249,6 +259,14 @@ def compute_metrics(result: SimulationResult) -> dict:
                 ),
             }
         )
+        if result.safety is not None:
+            detections = safety_metrics(result)["detections"]
+            metrics["faults"][-1].update(fault_detection(detections, fault.start, fault.end))
+    if result.safety is not None:
+        metrics["safety"] = safety_metrics(result)
+        # Scalars for the sweep's table (it keeps the top-level scalars).
+        metrics["safety_detections"] = len(metrics["safety"]["detections"])
+        metrics["safety_final_stiffness_estimate"] = metrics["safety"]["final_stiffness_estimate"]
     if scenario.wall.velocity != 0.0:
         moving = _window(time, scenario.wall.motion_start, min(scenario.wall.motion_end, duration))
         if moving.any():
@@ -333,11 +351,15 @@ def run_scenario(
     loop = loop or BuildClosedLoop(scenario)
     simulator = Simulator(loop.diagram)
     ApplySimulatorConfig(scenario.simulator, simulator)
+    if scenario.safety.enabled:
+        CapStepForSampledMonitor(scenario, simulator)
     context = simulator.get_mutable_context()
     SetInitialConditions(loop, context)
     divergence: list[str] = []
     simulator.set_monitor(_divergence_monitor(loop, divergence, progress))
     simulator.Initialize()
+    layer = loop.admittance if isinstance(loop.admittance, SafetyLayer) else None
+    safety_numbers = layer.numbers(context) if layer is not None else None
     start = time.perf_counter()
     try:
         simulator.AdvanceTo(scenario.duration)
@@ -346,7 +368,7 @@ def run_scenario(
             f"the integrator failed at t = {context.get_time():.6g} s: {str(error).splitlines()[0]}"
         )
     wall_time = time.perf_counter() - start
-    return _finished(_collect(loop, simulator, wall_time), divergence)
+    return _finished(_collect(loop, simulator, wall_time, safety_numbers), divergence)
 
 
 def _finished(result, divergence: list[str]):
@@ -360,7 +382,9 @@ def _finished(result, divergence: list[str]):
     return result
 
 
-def _collect(loop: ClosedLoop, simulator: Simulator, wall_time: float) -> SimulationResult:
+def _collect(
+    loop: ClosedLoop, simulator: Simulator, wall_time: float, safety_numbers: dict | None = None
+) -> SimulationResult:
     """The logged time series as plain arrays, with their metrics."""
     scenario = loop.scenario
     context = simulator.get_context()
@@ -399,5 +423,9 @@ def _collect(loop: ClosedLoop, simulator: Simulator, wall_time: float) -> Simula
         integrator_steps=int(integrator.get_num_steps_taken()),
         derivative_evaluations=int(integrator.get_num_derivative_evaluations()),
     )
+    if safety_numbers is not None:
+        result.safety = {"time": sample_times, "numbers": safety_numbers}
+        for name in loop.admittance.log_ports():
+            result.safety[name] = _log_data(loop, context, name)[1]
     result.metrics = compute_metrics(result)
     return result

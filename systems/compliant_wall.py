@@ -5,77 +5,53 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-import numpy as np
 from pydrake.autodiffutils import AutoDiffXd
-from pydrake.common.cpp_param import List
-from pydrake.common.value import Value
 from pydrake.math import max as scalar_max
-from pydrake.multibody.math import SpatialForce_
-from pydrake.multibody.plant import ExternallyAppliedSpatialForce_
-from pydrake.systems.framework import LeafSystem_
+from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem_
+from pydrake.systems.primitives import Demultiplexer
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from admittance.systems.planar_kinematics import kinematics_size
+from admittance.systems.planar_kinematics import TASK_SIZE, kinematics_size
 
-__all__ = ["CompliantWall", "CompliantWall_"]
+__all__ = ["CompliantWall", "CompliantWallLaw", "CompliantWallLaw_"]
 
 
-@TemplateSystem.define("CompliantWall_", T_list=[float, AutoDiffXd])
-def CompliantWall_(T):
+@TemplateSystem.define("CompliantWallLaw_", T_list=[float, AutoDiffXd])
+def CompliantWallLaw_(T):
     class Impl(LeafSystem_[T]):
-        """A unilateral linear-spring wall normal to world +x (paper eq. 4).
+        """The law of the compliant wall (paper eq. 4); see ``CompliantWall``.
 
-            F = Ke(t) * max(x_tip - Xe(t), 0)      (compressive, >= 0; the wall never pulls)
+            F = Ke(t) * max(x_tip - Xe(t), 0)
+            tau = -F J_x^T
 
-        is applied to the fingertip point as the world force (-F, 0, 0), and output as the
-        true contact force. x_tip is the first entry of the ``kinematics`` input, the
-        output of a ``PlanarKinematics`` of the same plant and frame
-        (systems/planar_kinematics.py). Ke steps at given times; Xe moves along +x at a
-        given velocity between a start and an end time:
-
-            Ke(t) = stiffness_i for the last step time t_i <= t (initial value before any)
-            Xe(t) = position + velocity * clamp(t - motion_start, 0, motion_end - motion_start)
-                    + sum of the offsets whose interval holds t
-
-        There is no damping and no friction: the wall is the pure spring of eq. 4, and Ke is
-        the equivalent stiffness of the wall, the silicone fingertip and the sensor together.
+        with x_tip and J_x (the row of x in J) read from the ``kinematics`` input. The one
+        output ``contact_force_and_generalized_force`` = [F; tau] (1 + nv) is computed in
+        one calc.
 
         .. pydrake_system::
 
-            name: CompliantWall
+            name: CompliantWallLaw
             input_ports:
             - kinematics
             output_ports:
-            - applied_spatial_force
-            - contact_force
+            - contact_force_and_generalized_force
         """
 
         def _construct(
             self,
             plant,
             *,
-            frame_name: str = "fingertip",
+            frame_name: str,
             position: float,
             stiffness: float,
-            stiffness_steps: Sequence[tuple[float, float]] = (),
-            velocity: float = 0.0,
-            motion_start: float = 0.0,
-            motion_end: float = math.inf,
-            position_offsets: Sequence[tuple[float, float, float]] = (),
+            stiffness_steps: Sequence[tuple[float, float]],
+            velocity: float,
+            motion_start: float,
+            motion_end: float,
+            position_offsets: Sequence[tuple[float, float, float]],
             converter=None,
         ) -> None:
-            """
-            Args:
-                plant: finalized MultibodyPlant_[T] of the arm.
-                frame_name: the frame whose origin touches the wall (the fingertip).
-                position: Xe at t = 0, m along world x.
-                stiffness: Ke at t = 0, N/m (> 0).
-                stiffness_steps: (time s, Ke N/m) pairs, times increasing, Ke > 0.
-                velocity: wall speed along +x while it moves, m/s (0 = static).
-                motion_start, motion_end: when the wall moves, s (end >= start).
-                position_offsets: (start s, end s, offset m) jumps of Xe along +x during
-                    [start, end), e.g. a wall that retracts faster than any arm follows.
-            """
+            """The arguments of ``CompliantWall``, every one given."""
             LeafSystem_[T].__init__(self, converter=converter)
             if not plant.HasFrameNamed(frame_name):
                 raise ValueError(f"the plant has no frame named '{frame_name}'")
@@ -108,27 +84,19 @@ def CompliantWall_(T):
             self._motion_start = float(motion_start)
             self._motion_end = float(motion_end)
             self._static = self._velocity == 0.0 and not self._offsets
-
-            frame = plant.GetFrameByName(frame_name)
-            self._body_index = frame.body().index()
-            # The contact point in the body frame (the frame's origin), fixed in the body.
-            self._p_BoFo_B = frame.GetFixedPoseInBodyFrame().translation()
-            self._applied = ExternallyAppliedSpatialForce_[T]()
-            self._applied.body_index = self._body_index
-            self._applied.p_BoBq_B = self._p_BoFo_B
-            # The spatial force of a unit contact force: (-1, 0, 0) N at the fingertip.
-            self._unit_push = SpatialForce_[T](np.array([T(0.0)] * 3 + [T(-1.0), T(0), T(0)]))
+            num_velocities = plant.num_velocities()
+            self._num_velocities = num_velocities
+            # J_x, the row of x in J, in the kinematics vector [X; dX/dt; J row by row].
+            self._jacobian_x = slice(2 * TASK_SIZE, 2 * TASK_SIZE + num_velocities)
 
             self.kinematics_input = self.DeclareVectorInputPort(
-                "kinematics", kinematics_size(plant.num_velocities())
+                "kinematics", kinematics_size(num_velocities)
             )
-            self.applied_spatial_force_output = self.DeclareAbstractOutputPort(
-                "applied_spatial_force",
-                lambda: Value[List[ExternallyAppliedSpatialForce_[T]]](),
-                self._CalcSpatialForce,
-            )
-            self.contact_force_output = self.DeclareVectorOutputPort(
-                "contact_force", 1, self._CalcContactForce
+            self.contact_force_and_generalized_force_output = self.DeclareVectorOutputPort(
+                "contact_force_and_generalized_force",
+                1 + num_velocities,
+                self._CalcLaw,
+                prerequisites_of_calc={self.time_ticket(), self.kinematics_input.ticket()},
             )
 
         def _construct_copy(self, other, converter=None) -> None:
@@ -174,28 +142,125 @@ def CompliantWall_(T):
             return sorted(times)
 
         # --- the law ----------------------------------------------------------------------
-        def _force(self, context):
-            """The compressive contact force F >= 0 (N) at the context's time and state."""
-            tip = self.kinematics_input.Eval(context).item(0)  # x of X = (x, y, theta)
+        def _CalcLaw(self, context, output) -> None:
+            kinematics = self.kinematics_input.Eval(context).tolist()  # floats or AutoDiffXd
             time = context.get_time()
             if T is not float:
                 time = time.value() if hasattr(time, "value") else float(time)
-            penetration = tip - self.position_at(time)
+            penetration = kinematics[0] - self.position_at(time)  # x of X = (x, y, theta)
             if T is float:
-                return self.stiffness_at(time) * max(penetration, 0.0)
-            return self.stiffness_at(time) * scalar_max(penetration, T(0.0))
-
-        def _CalcContactForce(self, context, output) -> None:
-            output.SetAtIndex(0, self._force(context))
-
-        def _CalcSpatialForce(self, context, output) -> None:
-            force = self.contact_force_output.Eval(context).item(0)
-            # The output keeps a copy: one applied force is reused.
-            applied = self._applied
-            applied.F_Bq_W = self._unit_push * force
-            output.set_value([applied])
+                force = self.stiffness_at(time) * max(penetration, 0.0)
+            else:
+                force = self.stiffness_at(time) * scalar_max(penetration, T(0.0))
+            # The force (-F, 0, 0) at the frame's origin, as generalized forces: -F J_x^T.
+            push = -force
+            output.SetFromVector([force] + [push * j for j in kinematics[self._jacobian_x]])
 
     return Impl
 
 
-CompliantWall = CompliantWall_[None]
+CompliantWallLaw = CompliantWallLaw_[None]
+
+
+class CompliantWall(Diagram):
+    """A unilateral linear-spring wall normal to world +x (paper eq. 4).
+
+        F = Ke(t) * max(x_tip - Xe(t), 0)      (compressive, >= 0; the wall never pulls)
+
+    is applied to the fingertip point as the world force (-F, 0, 0), and output as the
+    true contact force. x_tip is the first entry of the ``kinematics`` input, the
+    output of a ``PlanarKinematics`` of the same plant and frame
+    (systems/planar_kinematics.py). Ke steps at given times; Xe moves along +x at a
+    given velocity between a start and an end time:
+
+        Ke(t) = stiffness_i for the last step time t_i <= t (initial value before any)
+        Xe(t) = position + velocity * clamp(t - motion_start, 0, motion_end - motion_start)
+                + sum of the offsets whose interval holds t
+
+    There is no damping and no friction: the wall is the pure spring of eq. 4, and Ke is
+    the equivalent stiffness of the wall, the silicone fingertip and the sensor together.
+
+    The force reaches the plant as generalized forces, ``generalized_force`` = -F J_x^T
+    with J_x the row of x in the fingertip's Jacobian (from the ``kinematics`` input):
+    connect it to the plant's ``applied_generalized_force`` input. That is the force
+    (-F, 0, 0) applied at the fingertip point, in one Python calc with the contact force:
+    inside, the law (``CompliantWallLaw``, named ``law``) computes [F; tau] and ``split``
+    (a ``Demultiplexer``) gives the two outputs.
+
+    .. pydrake_system::
+
+        name: CompliantWall
+        input_ports:
+        - kinematics
+        output_ports:
+        - contact_force
+        - generalized_force
+    """
+
+    def __init__(
+        self,
+        plant,
+        *,
+        frame_name: str = "fingertip",
+        position: float,
+        stiffness: float,
+        stiffness_steps: Sequence[tuple[float, float]] = (),
+        velocity: float = 0.0,
+        motion_start: float = 0.0,
+        motion_end: float = math.inf,
+        position_offsets: Sequence[tuple[float, float, float]] = (),
+    ) -> None:
+        """
+        Args:
+            plant: finalized MultibodyPlant of the arm.
+            frame_name: the frame whose origin touches the wall (the fingertip).
+            position: Xe at t = 0, m along world x.
+            stiffness: Ke at t = 0, N/m (> 0).
+            stiffness_steps: (time s, Ke N/m) pairs, times increasing, Ke > 0.
+            velocity: wall speed along +x while it moves, m/s (0 = static).
+            motion_start, motion_end: when the wall moves, s (end >= start).
+            position_offsets: (start s, end s, offset m) jumps of Xe along +x during
+                [start, end), e.g. a wall that retracts faster than any arm follows.
+        """
+        Diagram.__init__(self)
+        builder = DiagramBuilder()
+        law = builder.AddNamedSystem(
+            "law",
+            CompliantWallLaw(
+                plant,
+                frame_name=frame_name,
+                position=position,
+                stiffness=stiffness,
+                stiffness_steps=stiffness_steps,
+                velocity=velocity,
+                motion_start=motion_start,
+                motion_end=motion_end,
+                position_offsets=position_offsets,
+            ),
+        )
+        self._law = law
+        split = builder.AddNamedSystem("split", Demultiplexer([1, plant.num_velocities()]))
+        builder.Connect(law.contact_force_and_generalized_force_output, split.get_input_port())
+        builder.ExportInput(law.kinematics_input, "kinematics")
+        builder.ExportOutput(split.get_output_port(0), "contact_force")
+        builder.ExportOutput(split.get_output_port(1), "generalized_force")
+        builder.BuildInto(self)
+        self.kinematics_input = self.GetInputPort("kinematics")
+        self.contact_force_output = self.GetOutputPort("contact_force")
+        self.generalized_force_output = self.GetOutputPort("generalized_force")
+
+    @property
+    def law(self) -> CompliantWallLaw:
+        return self._law
+
+    def stiffness_at(self, time: float) -> float:
+        """Ke(t), N/m."""
+        return self._law.stiffness_at(time)
+
+    def position_at(self, time: float) -> float:
+        """Xe(t), m."""
+        return self._law.position_at(time)
+
+    def discontinuity_times(self) -> list[float]:
+        """Times at which Ke jumps or the wall starts or stops (for the integrator)."""
+        return self._law.discontinuity_times()

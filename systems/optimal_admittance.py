@@ -48,55 +48,48 @@ from collections.abc import Sequence
 
 import numpy as np
 from pydrake.autodiffutils import AutoDiffXd
-from pydrake.common.value import Value
-from pydrake.systems.framework import BasicVector_, LeafSystem_, ValueProducer
+from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem_
+from pydrake.systems.primitives import ConstantVectorSource, Multiplexer
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from admittance.systems.force_axes import check_axes, force_error, per_axis, scatter
-from admittance.systems.ports import set_output
+from admittance.systems.force_axes import check_axes, per_axis
+from admittance.systems.law_integral import AddLawIntegral
 
-__all__ = ["OptimalAdmittance", "OptimalAdmittance_"]
+__all__ = ["OptimalAdmittance", "OptimalAdmittanceLaw", "OptimalAdmittanceLaw_"]
 
 
-@TemplateSystem.define("OptimalAdmittance_", T_list=[float, AutoDiffXd])
-def OptimalAdmittance_(T):
+@TemplateSystem.define("OptimalAdmittanceLaw_", T_list=[float, AutoDiffXd])
+def OptimalAdmittanceLaw_(T):
     class Impl(LeafSystem_[T]):
-        """Optimal admittance (paper eq. 10 with the corrected sign), one integrator per axis.
+        """The law of the optimal admittance (paper eq. 10, corrected sign); see
+        ``OptimalAdmittance``.
 
         For each force-controlled axis i (an index into the Cartesian vector X = (x, y, theta)):
 
             E_i = desired_force_i - measured_force_i
-            dz_i/dt = E_i
             Xr_i = gamma_i * stiffness_i * (z_i + alpha_i * (E_i - E0_i))
+            dz_i/dt = E_i
 
-        and Xr = 0 on the other axes. ``stiffness`` is K of eq. 5 and 10: the Cartesian
-        stiffness of the position-controlled arm, i.e. the PID's Kp on that axis. E0 is the
-        force error at t = 0 (a numeric parameter, see ``set_initial_force_error``) so that
-        Xr(0) = 0.
+        and Xr = 0 on the other axes, with the safety terms of ``OptimalAdmittance``.
 
-        Safety: a reading that is not finite (a broken sensor) freezes the integral
-        and takes E = 0, holding Xr at its settled value; Xr stays within
-        [-max_retract, max_push], and past a bound a back-calculation term
-        (clamped Xr - unclamped Xr) / (Gamma K tau_aw), tau_aw = max(10 ms, 5 period), pulls
-        the integral back (anti-windup), so the block leaves the bound within a few tau_aw
-        once the force error changes sign.
+        The law reads its inputs as one vector ``law_input``, gathered by a Multiplexer in
+        ``OptimalAdmittance`` (one port read instead of four, each about 0.5 us): the desired
+        forces Fr (one per force axis), the measured forces Fm, the initial force errors E0
+        and, for the continuous law, the integrals z.
 
-        Force bound (``max_force`` finite): the law runs on E_b = E - mu max(0, F - Fg),
-        Fg = (Fr + Fmax) / 2 (module docstring), mu = ``force_bound_gain``.
-
-        With ``period > 0`` the law is sampled as a digital controller would run it: at each
-        sample k, Xr[k] = Gamma K (z[k] + alpha (E[k] - E0)) is latched (zero-order hold) and
-        z[k+1] = z[k] + period * E[k]. The output is the held Xr, a discrete state read
-        directly (a state output port): nothing of the law runs between samples.
+        Continuous (``period`` 0): memoryless; the one output ``reference_offset_and_rate``
+        = [Xr (num_axes); dz/dt (one per force axis)] is computed in one calc. Sampled
+        (``period`` > 0): z and the held Xr are discrete states; at each sample Xr is
+        latched and z advances by period * dz/dt; the output ``reference_offset`` reads the
+        held Xr (a state output port).
 
         .. pydrake_system::
 
-            name: OptimalAdmittance
+            name: OptimalAdmittanceLaw
             input_ports:
-            - measured_force
-            - desired_force
+            - law_input
             output_ports:
-            - reference_offset
+            - reference_offset_and_rate (continuous) or reference_offset (sampled)
         """
 
         def _construct(
@@ -105,35 +98,23 @@ def OptimalAdmittance_(T):
             gamma: float | Sequence[float],
             alpha: float | Sequence[float],
             stiffness: float | Sequence[float],
-            force_axes: Sequence[int] = (0,),
-            num_axes: int = 3,
-            period: float = 0.0,
-            max_push: float | Sequence[float] = math.inf,
-            max_retract: float | Sequence[float] = math.inf,
-            max_force: float | Sequence[float] = math.inf,
-            force_bound_gain: float = 4.0,
+            force_axes: Sequence[int],
+            num_axes: int,
+            period: float,
+            max_push: float | Sequence[float],
+            max_retract: float | Sequence[float],
+            max_force: float | Sequence[float],
+            force_bound_gain: float,
             converter=None,
         ) -> None:
-            """
-            Args:
-                gamma: Gamma of eq. 10 per force-controlled axis (> 0), m/(N s) per unit K.
-                alpha: weight of dE/dt in the cost of eq. 7, per axis (>= 0), s.
-                stiffness: K of eq. 10 per axis (> 0): the PID's Kp on that axis, N/m.
-                force_axes: indices of the force-controlled axes in X (x=0, y=1, theta=2).
-                num_axes: size of the reference offset output (3 for a planar arm).
-                period: 0 for the continuous law, otherwise the sampling period in s.
-                max_push: the largest Xr along +axis (into the wall), m (> 0; inf = none).
-                max_retract: the largest Xr along -axis (away from the wall), m (> 0).
-                max_force: Fmax, the upper bound on the measured force per axis, N (> 0;
-                    inf = no bound).
-                force_bound_gain: mu, the weight of the force-bound penalty in I_b (> 0).
-            """
+            """The arguments of ``OptimalAdmittance``, every one given."""
             LeafSystem_[T].__init__(self, converter=converter)
             axes = check_axes(force_axes, num_axes)
             if not (np.isfinite(period) and period >= 0):
                 raise ValueError(f"period must be >= 0 s (0 = continuous), got {period}")
             size = len(axes)
             self._axes = axes
+            self._size = size
             self._num_axes = int(num_axes)
             self._period = float(period)
             self._gamma = per_axis("gamma", gamma, size, allow_zero=False)
@@ -152,7 +133,7 @@ def OptimalAdmittance_(T):
             if not (math.isfinite(force_bound_gain) and force_bound_gain > 0):
                 raise ValueError(f"force_bound_gain must be > 0, got {force_bound_gain}")
             self._force_bound_gain = float(force_bound_gain)
-            self._bounded = np.isfinite(self._max_force)
+            self._bounded = np.isfinite(self._max_force).tolist()
             # Back-calculation anti-windup time constant, s: fast next to the force loop
             # (~0.1 s), slow enough to be a stable discrete update at the sampling period.
             self._windup_time_constant = max(0.01, 5.0 * self._period)
@@ -164,33 +145,16 @@ def OptimalAdmittance_(T):
             self._alpha_list = self._alpha.tolist()
             self._max_push_list = self._max_push.tolist()
             self._max_retract_list = self._max_retract.tolist()
+            self._max_force_list = self._max_force.tolist()
 
-            self.measured_force_input = self.DeclareVectorInputPort("measured_force", size)
-            self.desired_force_input = self.DeclareVectorInputPort("desired_force", size)
-            self._initial_error_index = self.DeclareNumericParameter(
-                BasicVector_[T](np.zeros(size))
-            )
+            inputs = 3 if self._period > 0.0 else 4
+            self.law_input = self.DeclareVectorInputPort("law_input", inputs * size)
             if self._period == 0.0:
-                self.DeclareContinuousState(size)
-                # Xr and dz/dt come from one evaluation of the law per context, read by
-                # both the output and the derivatives.
-                self._law_cache = self.DeclareCacheEntry(
-                    description="reference offset and integral rate",
-                    value_producer=ValueProducer(
-                        allocate=Value[object]().Clone, calc=self._CalcContinuousLaw
-                    ),
-                    prerequisites_of_calc={
-                        self.xc_ticket(),
-                        self.all_parameters_ticket(),
-                        self.measured_force_input.ticket(),
-                        self.desired_force_input.ticket(),
-                    },
-                )
-                self.reference_offset_output = self.DeclareVectorOutputPort(
-                    "reference_offset",
-                    self._num_axes,
-                    self._CalcContinuousOutput,
-                    prerequisites_of_calc={self._law_cache.ticket()},
+                self.reference_offset_and_rate_output = self.DeclareVectorOutputPort(
+                    "reference_offset_and_rate",
+                    self._num_axes + size,
+                    self._CalcLaw,
+                    prerequisites_of_calc={self.law_input.ticket()},
                 )
             else:
                 # Discrete state: z (the integral of E) and the held Xr (num_axes), the
@@ -205,25 +169,32 @@ def OptimalAdmittance_(T):
                 )
 
         def _construct_copy(self, other, converter=None) -> None:
-            Impl._construct(
-                self,
-                gamma=other._gamma,
-                alpha=other._alpha,
-                stiffness=other._stiffness,
-                force_axes=other._axes,
-                num_axes=other._num_axes,
-                period=other._period,
-                max_push=other._max_push,
-                max_retract=other._max_retract,
-                max_force=other._max_force,
-                force_bound_gain=other._force_bound_gain,
-                converter=converter,
-            )
+            Impl._construct(self, **other.arguments, converter=converter)
 
         # --- accessors -------------------------------------------------------------------
         @property
+        def arguments(self) -> dict:
+            """The constructor's arguments (for a copy, or another scalar type)."""
+            return dict(
+                gamma=self._gamma,
+                alpha=self._alpha,
+                stiffness=self._stiffness,
+                force_axes=self._axes,
+                num_axes=self._num_axes,
+                period=self._period,
+                max_push=self._max_push,
+                max_retract=self._max_retract,
+                max_force=self._max_force,
+                force_bound_gain=self._force_bound_gain,
+            )
+
+        @property
         def force_axes(self) -> list[int]:
             return list(self._axes)
+
+        @property
+        def num_axes(self) -> int:
+            return self._num_axes
 
         @property
         def period(self) -> float:
@@ -231,56 +202,42 @@ def OptimalAdmittance_(T):
 
         @property
         def proportional_gain(self) -> np.ndarray:
-            """Gamma K alpha per axis, m/N: the direct reaction of Xr to a force change."""
             return self._proportional_gain.copy()
 
         @property
         def integral_gain(self) -> np.ndarray:
-            """Gamma K per axis, m/(N s): the rate of Xr per newton of force error."""
             return self._integral_gain.copy()
 
-        def set_initial_force_error(self, context, initial_force_error) -> None:
-            """Sets E(0), so that Xr(0) = 0 (usually desired - measured force at t = 0)."""
-            context.get_mutable_numeric_parameter(self._initial_error_index).SetFromVector(
-                np.atleast_1d(initial_force_error)
-            )
-
         def set_integral(self, context, integral) -> None:
-            """Sets z, the integral of the force error (for a warm start or an analysis)."""
-            integral = np.atleast_1d(integral)
+            """Sets z in this system's context (the sampled law's discrete state)."""
             if self._period == 0.0:
-                context.SetContinuousState(integral)
-            else:
-                context.SetDiscreteState(self._state_index, integral)
+                raise ValueError("the continuous law's integral is its input, not its state")
+            context.SetDiscreteState(self._state_index, np.atleast_1d(integral))
 
         # --- the law ----------------------------------------------------------------------
-        def _law(self, context, integral):
-            """(Xr, dz/dt) per force axis, with the invalid-measurement and push bounds.
+        def _law(self, values, integral):
+            """(Xr on every axis of X, dz/dt per force axis) as lists of Python scalars.
 
-            Written on Python scalars (floats, or AutoDiffXd after conversion), per axis.
+            `values` holds [Fr; Fm; E0] (each one entry per force axis; z may follow, unused
+            here), `integral` z; floats, or AutoDiffXd after conversion.
             """
-            desired = self.desired_force_input.Eval(context)
-            measured = self.measured_force_input.Eval(context)
-            initial_error = (
-                context.get_numeric_parameter(self._initial_error_index).CopyToVector().tolist()
-            )
-            # A reading that is not finite (a broken sensor) gives E = 0: the integral
-            # freezes and Xr holds its settled value until the sensor recovers.
-            errors = force_error(T, desired, measured)
+            size = self._size
             gains, alphas = self._integral_gain_list, self._alpha_list
-            offsets, rates = [], []
-            for i in range(len(self._axes)):
-                error = errors[i]
+            offsets = [T(0.0)] * self._num_axes
+            rates = []
+            for i in range(size):
+                desired, measured = values[i], values[size + i]
+                measured_value = measured if T is float else measured.value()
+                # A reading that is not finite (a broken sensor) gives E = 0: the integral
+                # freezes and Xr holds its settled value until the sensor recovers.
+                error = desired - measured if math.isfinite(measured_value) else T(0.0)
                 if self._bounded[i]:
-                    force = measured[i]
-                    guard = 0.5 * (desired[i] + self._max_force[i])
+                    guard = 0.5 * (desired + self._max_force_list[i])
                     # (NaN compares False: a broken reading adds no penalty.)
-                    if (force if T is float else force.value()) > (
-                        guard if T is float else guard.value()
-                    ):
+                    if measured_value > (guard if T is float else guard.value()):
                         # The force-bound penalty: E_b = E - mu (F - Fg).
-                        error = error - self._force_bound_gain * (force - guard)
-                offset = gains[i] * (integral[i] + alphas[i] * (error - initial_error[i]))
+                        error = error - self._force_bound_gain * (measured - guard)
+                offset = gains[i] * (integral[i] + alphas[i] * (error - values[2 * size + i]))
                 rate = error
                 offset_value = offset if T is float else offset.value()
                 # Xr stays within [-max_retract, max_push]. Past a bound, back-calculation
@@ -298,34 +255,195 @@ def OptimalAdmittance_(T):
                 if clamped is not None:
                     rate = error + (clamped - offset) / (gains[i] * self._windup_time_constant)
                     offset = clamped
-                offsets.append(offset)
+                offsets[self._axes[i]] = offset
                 rates.append(rate)
             return offsets, rates
 
-        def _CalcContinuousLaw(self, context, value) -> None:
-            integral = context.get_continuous_state_vector().CopyToVector().tolist()
-            offsets, rates = self._law(context, integral)
-            value.set_value((scatter(T, self._axes, self._num_axes, offsets), rates))
-
-        def DoCalcTimeDerivatives(self, context, derivatives) -> None:
-            if self._period > 0:  # the sampled law has no continuous state
-                return
-            derivatives.SetFromVector(self._law_cache.Eval(context)[1])
-
-        def _CalcContinuousOutput(self, context, output) -> None:
-            set_output(T, output, self._law_cache.Eval(context)[0])
+        def _CalcLaw(self, context, output) -> None:
+            values = self.law_input.Eval(context).tolist()  # floats, or AutoDiffXd objects
+            offsets, rates = self._law(values, values[3 * self._size :])
+            output.SetFromVector(offsets + rates)
 
         def _DiscreteUpdate(self, context, discrete_state) -> None:
+            values = self.law_input.Eval(context).tolist()  # floats, or AutoDiffXd objects
             integral = context.get_discrete_state(self._state_index).CopyToVector()
-            offsets, rates = self._law(context, integral.tolist())
+            offsets, rates = self._law(values, integral.tolist())
             discrete_state.get_mutable_vector(self._state_index).SetFromVector(
                 integral + self._period * np.array(rates)
             )
-            discrete_state.get_mutable_vector(self._held_index).SetFromVector(
-                scatter(T, self._axes, self._num_axes, offsets)
-            )
+            discrete_state.get_mutable_vector(self._held_index).SetFromVector(offsets)
 
     return Impl
 
 
-OptimalAdmittance = OptimalAdmittance_[None]
+OptimalAdmittanceLaw = OptimalAdmittanceLaw_[None]
+
+
+class OptimalAdmittance(Diagram):
+    """Optimal admittance (paper eq. 10 with the corrected sign), one integrator per axis.
+
+    For each force-controlled axis i (an index into the Cartesian vector X = (x, y, theta)):
+
+        E_i = desired_force_i - measured_force_i
+        dz_i/dt = E_i
+        Xr_i = gamma_i * stiffness_i * (z_i + alpha_i * (E_i - E0_i))
+
+    and Xr = 0 on the other axes. ``stiffness`` is K of eq. 5 and 10: the Cartesian
+    stiffness of the position-controlled arm, i.e. the PID's Kp on that axis. E0 is the
+    force error at t = 0 (see ``set_initial_force_error``) so that Xr(0) = 0.
+
+    Safety: a reading that is not finite (a broken sensor) freezes the integral
+    and takes E = 0, holding Xr at its settled value; Xr stays within
+    [-max_retract, max_push], and past a bound a back-calculation term
+    (clamped Xr - unclamped Xr) / (Gamma K tau_aw), tau_aw = max(10 ms, 5 period), pulls
+    the integral back (anti-windup), so the block leaves the bound within a few tau_aw
+    once the force error changes sign.
+
+    Force bound (``max_force`` finite): the law runs on E_b = E - mu max(0, F - Fg),
+    Fg = (Fr + Fmax) / 2 (module docstring), mu = ``force_bound_gain``.
+
+    With ``period > 0`` the law is sampled as a digital controller would run it: at each
+    sample k, Xr[k] = Gamma K (z[k] + alpha (E[k] - E0)) is latched (zero-order hold) and
+    z[k+1] = z[k] + period * E[k]. The output is the held Xr, a discrete state read
+    directly (a state output port): nothing of the law runs between samples.
+
+    Inside: the law (``OptimalAdmittanceLaw``, named ``law``, the only Python), its inputs
+    gathered by ``inputs`` (a ``Multiplexer``) with E0 from ``initial_force_error`` (a
+    ``ConstantVectorSource`` whose value lives in the context) and, for the continuous law,
+    z from ``integral`` (Drake's ``Integrator``) fed with dz/dt through ``split`` (a
+    ``Demultiplexer`` of the law's [Xr; dz/dt]). Each derivative evaluation of a closed
+    loop then calls the block's Python once (a LeafSystem with its own continuous state
+    needs three: the law, its output and its derivatives).
+
+    .. pydrake_system::
+
+        name: OptimalAdmittance
+        input_ports:
+        - measured_force
+        - desired_force
+        output_ports:
+        - reference_offset
+    """
+
+    def __init__(
+        self,
+        *,
+        gamma: float | Sequence[float],
+        alpha: float | Sequence[float],
+        stiffness: float | Sequence[float],
+        force_axes: Sequence[int] = (0,),
+        num_axes: int = 3,
+        period: float = 0.0,
+        max_push: float | Sequence[float] = math.inf,
+        max_retract: float | Sequence[float] = math.inf,
+        max_force: float | Sequence[float] = math.inf,
+        force_bound_gain: float = 4.0,
+    ) -> None:
+        """
+        Args:
+            gamma: Gamma of eq. 10 per force-controlled axis (> 0), m/(N s) per unit K.
+            alpha: weight of dE/dt in the cost of eq. 7, per axis (>= 0), s.
+            stiffness: K of eq. 10 per axis (> 0): the PID's Kp on that axis, N/m.
+            force_axes: indices of the force-controlled axes in X (x=0, y=1, theta=2).
+            num_axes: size of the reference offset output (3 for a planar arm).
+            period: 0 for the continuous law, otherwise the sampling period in s.
+            max_push: the largest Xr along +axis (into the wall), m (> 0; inf = none).
+            max_retract: the largest Xr along -axis (away from the wall), m (> 0).
+            max_force: Fmax, the upper bound on the measured force per axis, N (> 0;
+                inf = no bound).
+            force_bound_gain: mu, the weight of the force-bound penalty in I_b (> 0).
+        """
+        Diagram.__init__(self)
+        builder = DiagramBuilder()
+        law = builder.AddNamedSystem(
+            "law",
+            OptimalAdmittanceLaw(
+                gamma=gamma,
+                alpha=alpha,
+                stiffness=stiffness,
+                force_axes=force_axes,
+                num_axes=num_axes,
+                period=period,
+                max_push=max_push,
+                max_retract=max_retract,
+                max_force=max_force,
+                force_bound_gain=force_bound_gain,
+            ),
+        )
+        self._law = law
+        size = len(law.force_axes)
+        continuous = law.period == 0.0
+        inputs = builder.AddNamedSystem("inputs", Multiplexer([size] * (4 if continuous else 3)))
+        # The measured force first: the port indices of the LeafSystem this block was.
+        builder.ExportInput(inputs.get_input_port(1), "measured_force")
+        builder.ExportInput(inputs.get_input_port(0), "desired_force")
+        initial = builder.AddNamedSystem(
+            "initial_force_error", ConstantVectorSource(np.zeros(size))
+        )
+        builder.Connect(initial.get_output_port(), inputs.get_input_port(2))
+        builder.Connect(inputs.get_output_port(), law.law_input)
+        self._initial_force_error = initial
+        self._integrator = None
+        if continuous:
+            self._integrator = AddLawIntegral(
+                builder,
+                law.reference_offset_and_rate_output,
+                inputs.get_input_port(3),
+                "reference_offset",
+            )
+        else:
+            builder.ExportOutput(law.reference_offset_output, "reference_offset")
+        builder.BuildInto(self)
+        self.measured_force_input = self.GetInputPort("measured_force")
+        self.desired_force_input = self.GetInputPort("desired_force")
+        self.reference_offset_output = self.GetOutputPort("reference_offset")
+
+    # --- accessors -----------------------------------------------------------------------
+    @property
+    def law(self) -> OptimalAdmittanceLaw:
+        return self._law
+
+    @property
+    def force_axes(self) -> list[int]:
+        return self._law.force_axes
+
+    @property
+    def period(self) -> float:
+        return self._law.period
+
+    @property
+    def proportional_gain(self) -> np.ndarray:
+        """Gamma K alpha per axis, m/N: the direct reaction of Xr to a force change."""
+        return self._law.proportional_gain
+
+    @property
+    def integral_gain(self) -> np.ndarray:
+        """Gamma K per axis, m/(N s): the rate of Xr per newton of force error."""
+        return self._law.integral_gain
+
+    def set_initial_force_error(self, context, initial_force_error) -> None:
+        """Sets E(0), so that Xr(0) = 0 (usually desired - measured force at t = 0).
+
+        Args:
+            context: this block's context (``GetMyMutableContextFromRoot`` in a diagram).
+            initial_force_error: E0, one value per force axis.
+        """
+        source = self._initial_force_error
+        source.get_mutable_source_value(
+            self.GetMutableSubsystemContext(source, context)
+        ).SetFromVector(np.atleast_1d(initial_force_error))
+
+    def set_integral(self, context, integral) -> None:
+        """Sets z, the integral of the force error (for a warm start or an analysis).
+
+        Args:
+            context: this block's context (``GetMyMutableContextFromRoot`` in a diagram).
+            integral: z, one value per force axis.
+        """
+        integral = np.atleast_1d(integral)
+        if self._integrator is not None:
+            self._integrator.set_integral_value(
+                self.GetMutableSubsystemContext(self._integrator, context), integral
+            )
+        else:
+            self._law.set_integral(self.GetMutableSubsystemContext(self._law, context), integral)

@@ -338,7 +338,7 @@ def PlanarKinematics_(T):
             state = self.estimated_state_input.Eval(context).tolist()
             if not math.isfinite(sum(state)):  # NaN or infinite when any entry is
                 raise self._not_finite(context)
-            output.get_mutable_value()[:] = self._function(state)
+            output.SetFromVector(self._function(state))
 
         def _CalcFromPlant(self, context, output) -> None:
             state = self.estimated_state_input.Eval(context)

@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from pydrake.multibody.math import SpatialForce
+from pydrake.multibody.tree import MultibodyForces
 from pydrake.systems.framework import DiagramBuilder
 
 from admittance.systems.compliant_wall import CompliantWall
@@ -38,15 +40,30 @@ def test_force_is_unilateral_spring(arm_plant, penetration):
     assert force >= 0.0  # the wall never pulls
 
 
-def test_spatial_force_pushes_the_fingertip_along_minus_x(arm_plant):
+def test_generalized_force_is_the_push_along_minus_x_at_the_fingertip(arm_plant):
+    """tau = -F J_x^T is what the plant itself makes of the world force (-F, 0, 0) applied
+    at the fingertip point (0, -0.10, 0) of link3: its own tree computation
+    (CalcGeneralizedForces), independent of the kinematics vector the wall reads."""
     tip = _tip_x(arm_plant, Q)
     wall = CompliantWall(arm_plant, position=tip - 1e-4, stiffness=5e4)
-    (applied,) = wall.applied_spatial_force_output.Eval(_wall_context(arm_plant, wall, Q))
+    context = _wall_context(arm_plant, wall, Q)
+    assert wall.contact_force_output.Eval(context)[0] == pytest.approx(5.0, rel=1e-6)
+    plant_context = arm_plant.CreateDefaultContext()
+    arm_plant.SetPositions(plant_context, Q)
+    forces = MultibodyForces(arm_plant)
     link3 = arm_plant.GetBodyByName("link3")
-    assert applied.body_index == link3.index()
-    np.testing.assert_allclose(applied.p_BoBq_B, [0.0, -0.10, 0.0], atol=1e-12)
-    np.testing.assert_allclose(applied.F_Bq_W.translational(), [-5.0, 0.0, 0.0], atol=1e-9)
-    np.testing.assert_allclose(applied.F_Bq_W.rotational(), [0.0, 0.0, 0.0])
+    R_WB = arm_plant.EvalBodyPoseInWorld(plant_context, link3).rotation()
+    link3.AddInForce(
+        plant_context,
+        p_BP_E=R_WB @ [0.0, -0.10, 0.0],  # the fingertip, from link3's origin, in world
+        F_Bp_E=SpatialForce(tau=np.zeros(3), f=[-5.0, 0.0, 0.0]),
+        frame_E=arm_plant.world_frame(),
+        forces=forces,
+    )
+    expected = arm_plant.CalcGeneralizedForces(plant_context, forces)
+    # The penetration 1e-4 m is exact to round-off: F = 5 N to 1e-11 (5e4 * 2e-16 m).
+    np.testing.assert_allclose(wall.generalized_force_output.Eval(context), expected, atol=1e-9)
+    assert np.all(expected != 0.0)  # every joint feels the push at this pose
 
 
 def test_stiffness_steps_at_the_given_times(arm_plant):
@@ -154,12 +171,12 @@ def test_a_moving_wall_in_autodiff_is_where_the_float_wall_is(arm_plant):
     wall = CompliantWall(arm_plant, **arguments)
     expected = wall.contact_force_output.Eval(_wall_context(arm_plant, wall, Q, 1.0))[0]
     assert expected == pytest.approx(5e4 * (2e-3 - 0.5e-3))
-    wall_ad = wall.ToAutoDiffXd()
+    wall_ad = wall.ToAutoDiffXd()  # a plain Diagram: its ports by name
     context = wall_ad.CreateDefaultContext()
     context.SetTime(AutoDiffXd(1.0))
     kinematics = PlanarFrameKinematics(arm_plant, "fingertip").kinematics(np.r_[Q, 0, 0, 0])
-    wall_ad.kinematics_input.FixValue(context, [AutoDiffXd(k) for k in kinematics])
-    force = wall_ad.contact_force_output.Eval(context)[0]
+    wall_ad.GetInputPort("kinematics").FixValue(context, [AutoDiffXd(k) for k in kinematics])
+    force = wall_ad.GetOutputPort("contact_force").Eval(context)[0]
     assert force.value() == pytest.approx(expected, rel=1e-12)
 
 
@@ -192,9 +209,9 @@ def test_autodiff_wall_does_not_pull_when_out_of_contact(arm_plant):
     # Every entry of the kinematics input (X, J v, J) with a derivative of its own.
     kinematics = PlanarFrameKinematics(arm_plant, "fingertip").kinematics(np.r_[Q, 0, 0, 0])
     size = len(kinematics)
-    wall.kinematics_input.FixValue(
+    wall.GetInputPort("kinematics").FixValue(
         context, [AutoDiffXd(k, np.eye(size)[i]) for i, k in enumerate(kinematics)]
     )
-    force = wall.contact_force_output.Eval(context)[0]
+    force = wall.GetOutputPort("contact_force").Eval(context)[0]
     assert force.value() == 0.0
     np.testing.assert_array_equal(force.derivatives(), 0.0)

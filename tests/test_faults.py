@@ -144,9 +144,9 @@ def test_admittance_with_faults_converts_to_autodiff():
     block = OptimalAdmittance(gamma=1e-5, alpha=0.1, stiffness=2500.0, max_push=0.01)
     block_ad = block.ToAutoDiffXd()
     context = block_ad.CreateDefaultContext()
-    block_ad.desired_force_input.FixValue(context, [AutoDiffXd(5.0, [0.0])])
-    block_ad.measured_force_input.FixValue(context, [AutoDiffXd(4.0, [1.0])])
-    offset = block_ad.reference_offset_output.Eval(context)[0]
+    block_ad.GetInputPort("desired_force").FixValue(context, [AutoDiffXd(5.0, [0.0])])
+    block_ad.GetInputPort("measured_force").FixValue(context, [AutoDiffXd(4.0, [1.0])])
+    offset = block_ad.GetOutputPort("reference_offset").Eval(context)[0]
     # dXr/dF = -Gamma K alpha inside the bounds.
     assert offset.derivatives()[0] == pytest.approx(-1e-5 * 2500.0 * 0.1)
 

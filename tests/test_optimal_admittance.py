@@ -67,6 +67,8 @@ def test_sign_moves_reference_toward_the_wall_while_force_is_low(measured, direc
 
 def test_gradient_flow_rate_matches_eq_10_prime():
     """dXr/dt = Gamma K (E + alpha dE/dt) for a force that ramps (checked by AutoDiff)."""
+    # The converted block is a plain Diagram (its ports by name, z the state of its
+    # Integrator); E0, a constant, is left at its default: it does not enter dXr/dt.
     block = _block().ToAutoDiffXd()
     context = block.CreateDefaultContext()
     # Time-varying inputs as AutoDiff values with d/dt: F = 3 + 4 t, z = 0.4, dz/dt = E.
@@ -74,11 +76,10 @@ def test_gradient_flow_rate_matches_eq_10_prime():
     rate = 4.0  # dF/dt, so dE/dt = -4
     error = 5.0 - measured
     z = AutoDiffXd(0.4, [error])
-    block.measured_force_input.FixValue(context, [AutoDiffXd(measured, [rate])])
-    block.desired_force_input.FixValue(context, [AutoDiffXd(5.0, [0.0])])
+    block.GetInputPort("measured_force").FixValue(context, [AutoDiffXd(measured, [rate])])
+    block.GetInputPort("desired_force").FixValue(context, [AutoDiffXd(5.0, [0.0])])
     context.SetContinuousState([z])
-    block.set_initial_force_error(context, [AutoDiffXd(5.0, [0.0])])
-    offset = block.reference_offset_output.Eval(context)[0]
+    offset = block.GetOutputPort("reference_offset").Eval(context)[0]
     expected_rate = GAMMA * K * (error + ALPHA * (-rate))
     assert offset.derivatives()[0] == pytest.approx(expected_rate, rel=1e-12)
 
@@ -153,6 +154,29 @@ def test_sampled_law_on_three_axes_keeps_one_integral_and_one_held_offset_each()
     np.testing.assert_allclose(held, GAMMA * K * ALPHA * errors)
 
 
+def test_continuous_law_on_three_axes_keeps_each_axis_to_its_own_integral():
+    """Three force axes, one integral each: Xr_i = Gamma K (z_i + alpha (E_i - E0_i)) and
+    dz_i/dt = E_i, with E0 = 0 (the default). By hand: E = (2, 1, -1) N, z = (0.1, 0.2, 0.3)
+    N s, Gamma K = 0.025 m/(N s), alpha = 0.1 s."""
+    block = _block(force_axes=[0, 1, 2], gamma=[GAMMA] * 3, alpha=[ALPHA] * 3, stiffness=[K] * 3)
+    context = block.CreateDefaultContext()
+    block.measured_force_input.FixValue(context, [3.0, 4.0, 6.0])
+    block.desired_force_input.FixValue(context, [5.0, 5.0, 5.0])
+    block.set_integral(context, [0.1, 0.2, 0.3])
+    errors = np.array([2.0, 1.0, -1.0])
+    expected = 0.025 * (np.array([0.1, 0.2, 0.3]) + 0.1 * errors)  # (5, 7.5, 5) mm
+    np.testing.assert_allclose(block.reference_offset_output.Eval(context), expected, rtol=1e-12)
+    np.testing.assert_allclose(block.EvalTimeDerivatives(context).CopyToVector(), errors)
+
+
+def test_the_continuous_law_has_no_integral_state_to_set():
+    """The continuous law's z is its input (the Integrator's state): setting it on the law
+    alone is refused, and the block sets the Integrator's."""
+    block = _block()
+    with pytest.raises(ValueError, match="integral is its input"):
+        block.law.set_integral(block.law.CreateDefaultContext(), [0.4])
+
+
 def test_sampled_anti_windup_time_constant_is_five_periods():
     """Past max_push the sampled integral is pulled back at (Xr_clamped - Xr) / (Gamma K
     tau_aw) with tau_aw = max(10 ms, 5 periods): 50 ms at a 10 ms period."""
@@ -176,9 +200,9 @@ def test_continuous_law_feeds_through_the_force():
 def test_autodiff_gain_of_output_to_force():
     block = _block().ToAutoDiffXd()
     context = block.CreateDefaultContext()
-    block.measured_force_input.FixValue(context, [AutoDiffXd(3.0, [1.0])])
-    block.desired_force_input.FixValue(context, [AutoDiffXd(5.0, [0.0])])
-    offset = block.reference_offset_output.Eval(context)[0]
+    block.GetInputPort("measured_force").FixValue(context, [AutoDiffXd(3.0, [1.0])])
+    block.GetInputPort("desired_force").FixValue(context, [AutoDiffXd(5.0, [0.0])])
+    offset = block.GetOutputPort("reference_offset").Eval(context)[0]
     assert offset.derivatives()[0] == pytest.approx(-GAMMA * K * ALPHA)
 
 
@@ -261,15 +285,15 @@ def test_small_positive_force_bound_arguments_are_accepted():
 
 def test_autodiff_law_takes_a_broken_reading_as_zero_error():
     """NaN from the sensor in the AutoDiffXd law (what Linearize uses): E = 0, with no
-    derivative, so the integral freezes and Xr holds, as in the float law."""
+    derivative, so the integral freezes and Xr holds, as in the float law (E0 = 0, the
+    default)."""
     block = _block().ToAutoDiffXd()
     context = block.CreateDefaultContext()
-    block.measured_force_input.FixValue(context, [AutoDiffXd(math.nan, [1.0])])
-    block.desired_force_input.FixValue(context, [AutoDiffXd(5.0, [0.0])])
-    block.set_initial_force_error(context, [AutoDiffXd(0.0, [0.0])])
+    block.GetInputPort("measured_force").FixValue(context, [AutoDiffXd(math.nan, [1.0])])
+    block.GetInputPort("desired_force").FixValue(context, [AutoDiffXd(5.0, [0.0])])
     context.SetContinuousState([AutoDiffXd(0.4, [0.0])])
     (rate,) = block.EvalTimeDerivatives(context).CopyToVector()
     assert rate.value() == 0.0
     np.testing.assert_array_equal(rate.derivatives(), 0.0)
-    offset = block.reference_offset_output.Eval(context)[0]
+    offset = block.GetOutputPort("reference_offset").Eval(context)[0]
     assert offset.value() == pytest.approx(GAMMA * K * 0.4, rel=1e-12)

@@ -55,15 +55,17 @@ def test_eq13_holds_on_the_implemented_admittance_law(measured, force_rate):
     dV/dt = -K Gamma K w^2 < 0 for either sign of E and of w; the printed sign of eq. 10
     would make it +K Gamma K w^2."""
     gamma, alpha, K, desired = 1e-5, 0.1, 2500.0, 5.0
+    # The converted block is a plain Diagram: its ports by name, z its only state; E0 (a
+    # constant, left at its default) does not enter dXr/dt.
     block = OptimalAdmittance(gamma=gamma, alpha=alpha, stiffness=K).ToAutoDiffXd()
     context = block.CreateDefaultContext()
-    block.measured_force_input.FixValue(context, [AutoDiffXd(measured, [force_rate])])
-    block.desired_force_input.FixValue(context, [AutoDiffXd(desired, [0.0])])
-    block.set_initial_force_error(context, [AutoDiffXd(desired, [0.0])])
+    block.GetInputPort("measured_force").FixValue(context, [AutoDiffXd(measured, [force_rate])])
+    block.GetInputPort("desired_force").FixValue(context, [AutoDiffXd(desired, [0.0])])
     context.SetContinuousState([AutoDiffXd(0.4, [0.0])])
     integral_rate = block.EvalTimeDerivatives(context).CopyToVector()[0].value()
     context.SetContinuousState([AutoDiffXd(0.4, [integral_rate])])
-    reference_rate = block.reference_offset_output.Eval(context)[0].derivatives()[0]
+    offset = block.GetOutputPort("reference_offset").Eval(context)[0]
+    reference_rate = offset.derivatives()[0]
     weighted = (desired - measured) + alpha * (-force_rate)
     lyapunov_rate = (-K * weighted) * reference_rate
     assert lyapunov_rate == pytest.approx(-K * gamma * K * weighted**2, rel=1e-12)

@@ -13,6 +13,7 @@ import numpy as np
 from admittance.diagrams.app.formatting import number
 from admittance.diagrams.app.result_folder import ResultFolder, result_folder
 from admittance.diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium
+from admittance.diagrams.safety_stability import edge_confirmations, unstable_points
 from admittance.diagrams.scenario import Scenario
 from admittance.diagrams.simulation import run_scenario
 from admittance.diagrams.stability import (
@@ -63,7 +64,21 @@ MAPS = {
         {"sensor.kind": "flexiforce"},
     ),
     "gamma_vs_period": ("admittance.period", "period", "admittance period (s)", {}),
+    # With safety.enabled, the paper's law on the same grid, for comparison.
+    "gamma_vs_stiffness_without_safety": (
+        "wall.stiffness",
+        "stiffness",
+        "Ke (N/m), safety layer off",
+        {"safety.enabled": False},
+    ),
 }
+
+
+def _maps_of(scenario: Scenario) -> dict:
+    """The maps that apply: the comparison only with the layer on, the sampled block's
+    period only without it (the layer runs continuous)."""
+    skip = "gamma_vs_period" if scenario.safety.enabled else "gamma_vs_stiffness_without_safety"
+    return {name: spec for name, spec in MAPS.items() if name != skip}
 
 
 @dataclass
@@ -124,11 +139,25 @@ def analyse(
         }
 
     maps = {}
-    for index, (name, (key, axis, _, overrides)) in enumerate(MAPS.items(), start=1):
+    applicable = _maps_of(scenario)
+    for index, (name, (key, axis, _, overrides)) in enumerate(applicable.items(), start=1):
         size = len(axes.gamma) * len(getattr(axes, axis))
-        progress(f"stability map {index} of {len(MAPS)}: {name} ({size} linearizations)")
+        progress(f"stability map {index} of {len(applicable)}: {name} ({size} linearizations)")
         base = with_values(scenario, overrides) if overrides else scenario
         maps[name] = stability_map(base, "admittance.gamma", axes.gamma, key, getattr(axes, axis))
+    if scenario.safety.enabled:
+        progress("the safety layer: nonlinear runs at the corners of its map over Ke")
+        edges = (float(axes.stiffness[0]), float(axes.stiffness[-1]))
+        summary["safety"] = {
+            "unstable_points_with_layer": unstable_points(maps["gamma_vs_stiffness"]),
+            "unstable_points_without_layer": unstable_points(
+                maps["gamma_vs_stiffness_without_safety"]
+            ),
+            "map_points": int(maps["gamma_vs_stiffness"].size),
+            "edges": edge_confirmations(
+                scenario, edges, (float(axes.gamma[0]), float(axes.gamma[-1]))
+            ),
+        }
 
     trajectory = None
     if with_trajectory:
@@ -196,6 +225,21 @@ def format_report(summary: dict) -> str:
             f"{confirmation['above']['converges']} (contact lost at "
             f"{confirmation['above']['contact_lost_time']} s)"
         )
+    safety = summary.get("safety")
+    if safety:
+        lines.append(
+            f"Safety layer: {safety['unstable_points_with_layer']} unstable points of "
+            f"{safety['map_points']} on the map of Gamma against Ke with the layer, "
+            f"{safety['unstable_points_without_layer']} without it; nonlinear runs at its "
+            "corners (0.5 N step of Fr):"
+        )
+        for run in safety["edges"]:
+            lines.append(
+                f"  Ke {number(run['stiffness'], ' N/m')}, Gamma {number(run['gamma'])}: "
+                f"stable = {run['stable']} (peak error {number(run['peak_error_first_fifth'])}"
+                f" -> {number(run['peak_error_last_fifth'])} N, contact lost at "
+                f"{run['contact_lost_time']})"
+            )
     trajectory = summary.get("lyapunov_along_trajectory")
     if trajectory:
         lines.append(

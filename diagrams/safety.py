@@ -1,0 +1,296 @@
+"""The safety layer in the closed loop (safety.enabled; docs/safety.md).
+
+Between the sensor and the PID, in place of the paper's admittance block:
+
+    reading --> SensorFaultDetector --trusted force, fault--> SafeAdmittance --Xr--> (+ Xd) PID
+                  ^ observed force          |                     ^ k_hat
+    ContactForceObserver (state, torques)   +--> StiffnessEstimator (trusted force, state)
+
+The layer's derived numbers (its thresholds and the detector's tolerance) are set here
+from the scenario; the law derives the rest (apparent mass, damping, speeds, schedule)
+from the plant online. This module also turns the layer's logs into metrics.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.systems.framework import Context, DiagramBuilder
+
+from admittance.diagrams.scenario import Scenario, ScenarioError
+from admittance.systems.contact_force_observer import ContactForceObserver
+from admittance.systems.fault_detector import FAULT_FLAGS, SensorFaultDetector
+from admittance.systems.flexiforce import FlexiForceSensor
+from admittance.systems.safe_admittance import SafeAdmittance
+from admittance.systems.stiffness_estimator import StiffnessEstimator
+
+__all__ = [
+    "SafetyLayer",
+    "AddSafetyLayer",
+    "CapStepForSampledMonitor",
+    "contact_force_threshold",
+    "expected_noise",
+    "fault_detection",
+    "safety_columns",
+    "safety_metrics",
+]
+
+# The wall normal in X = (x, y, theta).
+NORMAL_AXIS = 0
+# The force observer's bandwidth, 1/s: 10 ms, two ADC samples at the default 5 ms.
+OBSERVER_GAIN = 100.0
+# Contact: the trusted force above this share of Fr, or 5 noise deviations if more.
+CONTACT_SHARE = 0.1
+CONTACT_NOISE_DEVIATIONS = 5.0
+# The plausibility check's base tolerance: this share of Fr plus 6 noise deviations.
+TOLERANCE_SHARE = 0.2
+TOLERANCE_NOISE_DEVIATIONS = 6.0
+# The stiffness estimate updates once F - F_c is above this share of Fr.
+INFORMATIVE_SHARE = 0.2
+
+
+def expected_noise(scenario: Scenario) -> float:
+    """sigma, the noise the monitor expects on the reading (the sensor's spec), N."""
+    sensor = scenario.sensor
+    return sensor.noise_std if sensor.kind != "ideal" else 0.0
+
+
+def contact_force_threshold(scenario: Scenario) -> float:
+    """F_c = max(0.1 Fr, 5 sigma), N: a contact, not the noise."""
+    return max(
+        CONTACT_SHARE * scenario.force_reference,
+        CONTACT_NOISE_DEVIATIONS * expected_noise(scenario),
+    )
+
+
+@dataclass
+class SafetyLayer:
+    """The layer's systems, with the ports the closed loop wires as a force controller's."""
+
+    law: SafeAdmittance
+    detector: SensorFaultDetector
+    estimator: StiffnessEstimator
+    observer: ContactForceObserver
+
+    # The force controller's ports (diagrams/force_controllers.py): the reading goes to
+    # the detector, Fr and Xd to the law, Xr comes out of the law.
+    @property
+    def measured_force_input(self):
+        return self.detector.measured_force_input
+
+    @property
+    def desired_force_input(self):
+        return self.law.desired_force_input
+
+    @property
+    def desired_position_input(self):
+        return self.law.desired_position_input
+
+    @property
+    def reference_offset_output(self):
+        return self.law.reference_offset_output
+
+    def log_ports(self) -> dict:
+        """The layer's signals worth logging, by name."""
+        return {
+            "fault_flags": self.detector.fault_flags_output,
+            "trusted_force": self.detector.trusted_force_output,
+            "observed_force": self.observer.contact_force_output,
+            "stiffness_estimate": self.estimator.stiffness_estimate_output,
+            "gain_scale": self.law.gain_scale_output,
+        }
+
+    def initialize(self, root_context: Context) -> None:
+        """At a run's start: the monitor holds the first reading, the reference is at the
+        tip (the arm at rest does not move when the run starts), Gamma_s at its target."""
+        detector_context = self.detector.GetMyMutableContextFromRoot(root_context)
+        reading = self.detector.measured_force_input.Eval(detector_context)[0]
+        self.detector.set_reading(detector_context, float(reading))
+        try:
+            self.law.start_at_tip(self.law.GetMyMutableContextFromRoot(root_context))
+        except ValueError as error:
+            raise ScenarioError(
+                f"arm.initial_position, admittance.max_retract, admittance.max_push: {error} "
+                "(with safety.enabled the reference starts at the tip)"
+            ) from None
+
+    def set_equilibrium(self, root_context: Context, offset: float, external_torque) -> None:
+        """At an analysis equilibrium: Xr = `offset`, the observer at `external_torque`."""
+        self.law.set_equilibrium(self.law.GetMyMutableContextFromRoot(root_context), offset)
+        self.observer.set_external_torque(
+            self.observer.GetMyMutableContextFromRoot(root_context), external_torque
+        )
+
+    def numbers(self, root_context: Context) -> dict:
+        """The layer's derived numbers at `root_context` (apparent mass, c, v_max, ...)."""
+        numbers = dict(self.law.numbers(self.law.GetMyContextFromRoot(root_context)))
+        numbers["contact_force_threshold"] = self.estimator.contact_force
+        numbers["detection_delay"] = self.detector.detection_delay
+        return numbers
+
+
+def AddSafetyLayer(
+    builder: DiagramBuilder,
+    scenario: Scenario,
+    *,
+    plant,
+    pid,
+    trajectory,
+    analysis: bool = False,
+) -> SafetyLayer:
+    """Adds the layer's systems and wires them to the plant, the PID and the trajectory.
+
+    The reading, Fr and Xd are wired by the caller, through the returned layer's ports.
+    With `analysis`, the estimator is frozen at the wall's stiffness (what it converges
+    to on a static wall) and the detector passes the reading on: an equilibrium has no
+    fault, and its gain schedule is frozen at the estimate.
+    """
+    frame = scenario.arm.fingertip_frame
+    admittance, pid_config, safety = scenario.admittance, scenario.pid, scenario.safety
+    reference = scenario.force_reference
+    noise = expected_noise(scenario)
+    contact = contact_force_threshold(scenario)
+    sensor = FlexiForceSensor(
+        kind=scenario.sensor.kind, filter_cutoff_hz=scenario.sensor.filter_cutoff
+    )
+    filter_time_constant = sensor.filter_time_constant if sensor.kind != "ideal" else 0.0
+
+    observer = builder.AddSystem(
+        ContactForceObserver(plant, frame_name=frame, gain=OBSERVER_GAIN, normal_axis=NORMAL_AXIS)
+    )
+    observer.set_name("contact_force_observer")
+    estimator = builder.AddSystem(
+        StiffnessEstimator(
+            plant,
+            frame_name=frame,
+            period=scenario.sensor.noise_period,
+            prior_stiffness=safety.max_stiffness,
+            contact_force=contact,
+            informative_force=INFORMATIVE_SHARE * reference,
+            normal_axis=NORMAL_AXIS,
+            frozen_estimate=scenario.wall.stiffness if analysis else None,
+        )
+    )
+    estimator.set_name("stiffness_estimator")
+    detector = builder.AddSystem(
+        SensorFaultDetector(
+            plant,
+            frame_name=frame,
+            period=scenario.sensor.noise_period,
+            noise_std=noise,
+            saturation_force=sensor.saturation_force,
+            contact_force=contact,
+            force_tolerance=TOLERANCE_SHARE * reference + TOLERANCE_NOISE_DEVIATIONS * noise,
+            observer_gain=OBSERVER_GAIN,
+            normal_axis=NORMAL_AXIS,
+            frozen=analysis,
+        )
+    )
+    detector.set_name("sensor_fault_detector")
+    law = builder.AddSystem(
+        SafeAdmittance(
+            plant,
+            frame_name=frame,
+            gamma=admittance.gamma,
+            alpha=admittance.alpha,
+            stiffness=pid_config.kp[NORMAL_AXIS],
+            pid_kp=pid_config.kp[NORMAL_AXIS],
+            pid_kd=pid_config.kd[NORMAL_AXIS],
+            max_force=admittance.max_force,
+            force_bound_gain=admittance.force_bound_gain,
+            max_push=admittance.max_push,
+            max_retract=admittance.max_retract,
+            max_stiffness=safety.max_stiffness,
+            damping_ratio=safety.damping_ratio,
+            stability_margin=safety.stability_margin,
+            filter_time_constant=filter_time_constant,
+            contact_force=contact,
+            detection_delay=detector.detection_delay,
+            normal_axis=NORMAL_AXIS,
+            num_axes=3,
+        )
+    )
+    law.set_name("safe_admittance")
+
+    state = plant.get_state_output_port()
+    builder.Connect(state, observer.estimated_state_input)
+    builder.Connect(pid.actuation_output, observer.actuation_input)
+    builder.Connect(state, estimator.estimated_state_input)
+    builder.Connect(detector.trusted_force_output, estimator.measured_force_input)
+    builder.Connect(detector.sensor_fault_output, estimator.sensor_fault_input)
+    builder.Connect(observer.contact_force_output, detector.observed_force_input)
+    builder.Connect(estimator.stiffness_estimate_output, detector.stiffness_estimate_input)
+    builder.Connect(state, detector.estimated_state_input)
+    builder.Connect(detector.trusted_force_output, law.measured_force_input)
+    builder.Connect(detector.sensor_fault_output, law.sensor_fault_input)
+    builder.Connect(estimator.stiffness_estimate_output, law.stiffness_estimate_input)
+    builder.Connect(state, law.estimated_state_input)
+    builder.Connect(trajectory.desired_velocity_output, law.desired_velocity_input)
+    return SafetyLayer(law=law, detector=detector, estimator=estimator, observer=observer)
+
+
+def CapStepForSampledMonitor(scenario: Scenario, simulator) -> None:
+    """Caps the integrator's step at half the sensor's sample period.
+
+    The layer's monitor and estimator are sampled (periodic events every T). Measured with
+    Drake 1.51: radau3 stepping next to periodic events T apart, with a step that may reach
+    T, shrinks its steps geometrically on paper_stiffness_step's sliding trajectory (3,036
+    steps for 0.1 s with a no-op 5 ms event, 61 without; 74 with the step capped at 2.5 ms;
+    docs/safety.md). A step of at most T / 2 avoids it.
+    """
+    integrator = simulator.get_mutable_integrator()
+    cap = 0.5 * scenario.sensor.noise_period
+    if integrator.get_maximum_step_size() > cap:
+        integrator.set_maximum_step_size(cap)
+
+
+# --- metrics ----------------------------------------------------------------------------
+
+
+def _rising_edges(time: np.ndarray, flags: np.ndarray) -> list[dict]:
+    """Each time a flag turns on: {"time", "kind"}, in time order."""
+    detections = []
+    for column, kind in enumerate(FAULT_FLAGS):
+        on = flags[:, column] > 0.5
+        starts = np.nonzero(on & ~np.concatenate([[False], on[:-1]]))[0]
+        detections += [{"time": float(time[i]), "kind": kind} for i in starts]
+    return sorted(detections, key=lambda d: d["time"])
+
+
+def safety_columns(logs: dict) -> dict[str, np.ndarray]:
+    """The layer's timeseries.csv columns (after the paper's)."""
+    columns = {
+        "force_trusted": logs["trusted_force"][:, 0],
+        "force_observed": logs["observed_force"][:, 0],
+        "stiffness_estimate": logs["stiffness_estimate"][:, 0],
+        "gain_scale": logs["gain_scale"][:, 0],
+    }
+    for column, kind in enumerate(FAULT_FLAGS):
+        columns[f"fault_{kind}"] = logs["fault_flags"][:, column]
+    return columns
+
+
+def safety_metrics(result) -> dict:
+    """metrics.json's ``safety`` section: the layer's numbers at the start, each
+    detection (time, kind), and the final stiffness estimate and gain scale."""
+    logs = result.safety
+    time = logs["time"]
+    metrics = {key: value for key, value in logs["numbers"].items() if key != "in_contact"}
+    metrics["detections"] = _rising_edges(time, logs["fault_flags"])
+    metrics["final_stiffness_estimate"] = float(logs["stiffness_estimate"][-1, 0])
+    metrics["final_gain_scale"] = float(logs["gain_scale"][-1, 0])
+    return metrics
+
+
+def fault_detection(detections: list[dict], start: float, end: float) -> dict:
+    """The first detection during [start, end] of an injected fault: time, kind, delay."""
+    for detection in detections:
+        if start <= detection["time"] <= end + math.ulp(end):
+            return {
+                "detected_time": detection["time"],
+                "detected_kind": detection["kind"],
+                "detection_delay": detection["time"] - start,
+            }
+    return {"detected_time": None, "detected_kind": None, "detection_delay": None}

@@ -1,0 +1,320 @@
+"""A monitor of the force reading: what may be trusted, and which fault it shows.
+
+It checks the reading r at each ADC sample (period T, the sensor's sample period) and
+passes on a trusted force: r while r is trusted, else the last trusted reading (held).
+Four kinds of fault, each one flag of ``fault_flags``:
+
+* ``nonfinite`` (instant): r is NaN or infinite (a broken cable, an ADC error);
+* ``saturated`` (instant): r >= 98 % of the sensor's full scale (the op-amp at its rail:
+  the true force may be anything above);
+* ``stuck`` (after N_s = 3 samples): the reading does not vary while it must, i.e.
+  |r[k] - r[k-1]| < sigma / 100 while the sensor's noise sigma is expected (a change that
+  small has a chance of 0.56 % per sample for Gaussian noise, so three in a row once in
+  5.7e6 samples), or r is unchanged while the tip moves in contact fast enough that the
+  stiffness estimate predicts a change beyond the tolerance (k_hat |x'| T > F_tol);
+* ``implausible`` (after N_i = 3 samples): r disagrees with the arm's own estimate of the
+  contact force F_hat (the momentum observer, systems/contact_force_observer.py, which uses
+  the measured motion and the applied torques) by more than
+  F_tol + (|r[k] - r[k-1]| / T + k_hat |x'|) / K_o: the observer follows the force with
+  the lag 1 / K_o, so the allowance grows with the rate at which the force may be changing
+  (seen in the reading itself, or predicted from the tip's speed and the stiffness
+  estimate).
+
+A detected stuck or implausible reading stays flagged until N_r = 4 samples in a row show
+no evidence of it. The held value is the reading of the sample before the first sample of
+evidence, so a fault caught after N samples leaves no trace in it. The ``sensor_fault``
+output is 1 while any flag is set.
+
+At an analysis equilibrium there is no fault: with ``frozen`` the block has no state and
+passes the reading on (trusted_force = measured_force, no flag).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydrake.autodiffutils import AutoDiffXd
+from pydrake.common.value import Value
+from pydrake.systems.framework import BasicVector_, LeafSystem_, ValueProducer
+from pydrake.systems.scalar_conversion import TemplateSystem
+
+from admittance.systems.planar_kinematics import PlanarFrameKinematics
+
+__all__ = ["FAULT_FLAGS", "SensorFaultDetector", "SensorFaultDetector_"]
+
+#: The kinds of fault, in the order of the ``fault_flags`` output.
+FAULT_FLAGS = ("nonfinite", "saturated", "stuck", "implausible")
+
+# Samples of evidence before a stuck / implausible reading is flagged, and without
+# evidence before the flag clears.
+STUCK_SAMPLES = 3
+IMPLAUSIBLE_SAMPLES = 3
+CLEAR_SAMPLES = 4
+# A reading at or above this share of full scale is saturated.
+SATURATED_SHARE = 0.98
+# A change below sigma / UNCHANGED_NOISE_SHARE counts as no change (noise expected).
+UNCHANGED_NOISE_SHARE = 100.0
+# ... and below this without noise, N.
+UNCHANGED_FORCE = 1e-9
+
+# Discrete state layout.
+_PREVIOUS, _STUCK, _IMPLAUSIBLE, _CLEAR_STUCK, _CLEAR_IMPLAUSIBLE = 0, 1, 2, 3, 4
+_STUCK_FLAG, _IMPLAUSIBLE_FLAG, _HELD = 5, 6, 7
+_STATE_SIZE = 8
+
+
+def _value(x) -> float:
+    return float(x) if isinstance(x, float | int) else float(x.value())
+
+
+@TemplateSystem.define("SensorFaultDetector_", T_list=[float, AutoDiffXd])
+def SensorFaultDetector_(T):
+    class Impl(LeafSystem_[T]):
+        """Sampled monitor of the force reading (module docstring).
+
+        State (discrete, updated every `period`): previous reading, evidence counters,
+        the stuck and implausible flags, the held force.
+
+        .. pydrake_system::
+
+            name: SensorFaultDetector
+            input_ports:
+            - measured_force
+            - observed_force
+            - stiffness_estimate
+            - estimated_state
+            output_ports:
+            - trusted_force
+            - sensor_fault
+            - fault_flags
+        """
+
+        def _construct(
+            self,
+            plant,
+            *,
+            frame_name: str = "fingertip",
+            period: float,
+            noise_std: float,
+            saturation_force: float,
+            contact_force: float,
+            force_tolerance: float,
+            observer_gain: float,
+            normal_axis: int = 0,
+            frozen: bool = False,
+            converter=None,
+        ) -> None:
+            """
+            Args:
+                plant: finalized MultibodyPlant_[T] of the arm.
+                frame_name: the contact frame.
+                period: T, the sample period of the reading (the ADC's), s.
+                noise_std: sigma, the noise expected on the reading, N (0 = none).
+                saturation_force: the sensor's full scale, N.
+                contact_force: F_c, the force above which the tip is in contact, N.
+                force_tolerance: F_tol, the base tolerance of the plausibility check, N.
+                observer_gain: K_o of the force observer, 1/s.
+                normal_axis: the wall normal's index in X = (x, y, theta).
+                frozen: no state, no check (analysis diagrams).
+            """
+            LeafSystem_[T].__init__(self, converter=converter)
+            for name, value in (
+                ("period", period),
+                ("saturation_force", saturation_force),
+                ("contact_force", contact_force),
+                ("force_tolerance", force_tolerance),
+                ("observer_gain", observer_gain),
+            ):
+                if not (math.isfinite(value) and value > 0):
+                    raise ValueError(f"{name} must be > 0, got {value}")
+            if not (math.isfinite(noise_std) and noise_std >= 0):
+                raise ValueError(f"noise_std must be >= 0 N, got {noise_std}")
+            self._plant = plant
+            self._arguments = dict(
+                frame_name=frame_name,
+                period=period,
+                noise_std=noise_std,
+                saturation_force=saturation_force,
+                contact_force=contact_force,
+                force_tolerance=force_tolerance,
+                observer_gain=observer_gain,
+                normal_axis=normal_axis,
+                frozen=frozen,
+            )
+            self._period = float(period)
+            self._noise_std = float(noise_std)
+            self._saturation_force = float(saturation_force)
+            self._contact_force = float(contact_force)
+            self._force_tolerance = float(force_tolerance)
+            self._observer_gain = float(observer_gain)
+            self._normal_axis = int(normal_axis)
+            self._frozen = bool(frozen)
+            self._kinematics = PlanarFrameKinematics(plant, frame_name)
+            self._num_positions = plant.num_positions()
+            nx = plant.num_positions() + plant.num_velocities()
+            self.measured_force_input = self.DeclareVectorInputPort("measured_force", 1)
+            self.observed_force_input = self.DeclareVectorInputPort("observed_force", 1)
+            self.stiffness_estimate_input = self.DeclareVectorInputPort("stiffness_estimate", 1)
+            self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", nx)
+            reading = {self.measured_force_input.ticket()}
+            if not self._frozen:
+                initial = np.zeros(_STATE_SIZE)
+                initial[_PREVIOUS] = math.nan
+                self._state_index = self.DeclareDiscreteState(BasicVector_[T](initial))
+                self.DeclarePeriodicDiscreteUpdateEvent(
+                    period_sec=self._period, offset_sec=0.0, update=self._Update
+                )
+                reading.add(self.xd_ticket())
+            # The flags are computed once per context and read by the three outputs.
+            self._flags_cache = self.DeclareCacheEntry(
+                description="fault flags",
+                value_producer=ValueProducer(
+                    allocate=Value[object]().Clone,
+                    calc=lambda context, value: value.set_value(self._flags(context)),
+                ),
+                prerequisites_of_calc=reading,
+            )
+            flags = {self._flags_cache.ticket()}
+            self.trusted_force_output = self.DeclareVectorOutputPort(
+                "trusted_force", 1, self._CalcTrusted, prerequisites_of_calc=reading | flags
+            )
+            self.sensor_fault_output = self.DeclareVectorOutputPort(
+                "sensor_fault", 1, self._CalcFault, prerequisites_of_calc=flags
+            )
+            self.fault_flags_output = self.DeclareVectorOutputPort(
+                "fault_flags", len(FAULT_FLAGS), self._CalcFlags, prerequisites_of_calc=flags
+            )
+
+        def _construct_copy(self, other, converter=None) -> None:
+            Impl._construct(
+                self, other._plant.ToScalarType[T](), converter=converter, **other._arguments
+            )
+
+        # --- accessors ---------------------------------------------------------------
+        @property
+        def period(self) -> float:
+            return self._period
+
+        @property
+        def detection_delay(self) -> float:
+            """The longest delay from a fault's onset to its flag, s: N + 1 samples."""
+            return (max(STUCK_SAMPLES, IMPLAUSIBLE_SAMPLES) + 1) * self._period
+
+        def set_reading(self, context, reading: float) -> None:
+            """Starts the monitor with `reading` as the previous and held value."""
+            if self._frozen:
+                return
+            state = np.zeros(_STATE_SIZE)
+            state[_PREVIOUS] = reading
+            state[_HELD] = reading
+            context.get_mutable_discrete_state(self._state_index).SetFromVector(state)
+
+        # --- checks ------------------------------------------------------------------
+        def _instant_flags(self, reading: float) -> tuple[bool, bool]:
+            finite = math.isfinite(reading)
+            return (not finite, finite and reading >= SATURATED_SHARE * self._saturation_force)
+
+        def _flags(self, context) -> list[bool]:
+            reading = _value(self.measured_force_input.Eval(context)[0])
+            nonfinite, saturated = self._instant_flags(reading)
+            if self._frozen:
+                return [nonfinite, saturated, False, False]
+            state = context.get_discrete_state(self._state_index).CopyToVector()
+            return [
+                nonfinite,
+                saturated,
+                _value(state[_STUCK_FLAG]) > 0.5,
+                _value(state[_IMPLAUSIBLE_FLAG]) > 0.5,
+            ]
+
+        def _CalcFlags(self, context, output) -> None:
+            output.SetFromVector([T(float(flag)) for flag in self._flags_cache.Eval(context)])
+
+        def _CalcFault(self, context, output) -> None:
+            output.SetFromVector([T(float(any(self._flags_cache.Eval(context))))])
+
+        def _CalcTrusted(self, context, output) -> None:
+            reading = self.measured_force_input.Eval(context)[0]
+            if self._frozen or not any(self._flags_cache.Eval(context)):
+                output.SetFromVector([reading])
+                return
+            held = context.get_discrete_state(self._state_index).CopyToVector()[_HELD]
+            output.SetFromVector([held])
+
+        def _Update(self, context, discrete_state) -> None:
+            state = [
+                _value(x) for x in context.get_discrete_state(self._state_index).CopyToVector()
+            ]
+            reading = _value(self.measured_force_input.Eval(context)[0])
+            nonfinite, saturated = self._instant_flags(reading)
+            previous = state[_PREVIOUS]
+            if nonfinite or saturated or not math.isfinite(previous):
+                # No evidence either way; the held value stays.
+                state[_PREVIOUS] = reading if not (nonfinite or saturated) else previous
+                if not math.isfinite(previous) and not (nonfinite or saturated):
+                    state[_HELD] = reading
+                discrete_state.get_mutable_vector(self._state_index).SetFromVector(
+                    [T(x) for x in state]
+                )
+                return
+            change = abs(reading - previous)
+            observed = _value(self.observed_force_input.Eval(context)[0])
+            stiffness = _value(self.stiffness_estimate_input.Eval(context)[0])
+            plant_state = self.estimated_state_input.Eval(context)
+            self._kinematics.set_state(np.array([T(_value(x)) for x in plant_state]))
+            velocity = np.array([_value(x) for x in plant_state[self._num_positions :]])
+            jacobian = np.array([[_value(x) for x in row] for row in self._kinematics.jacobian()])
+            speed = abs((jacobian @ velocity)[self._normal_axis])
+            predicted_rate = stiffness * speed
+            if self._noise_std > 0:
+                unchanged = change < self._noise_std / UNCHANGED_NOISE_SHARE
+                stuck_evidence = unchanged
+            else:
+                unchanged = change < UNCHANGED_FORCE
+                stuck_evidence = False
+            in_contact = reading >= self._contact_force or observed >= self._contact_force
+            if unchanged and in_contact:
+                stuck_evidence = stuck_evidence or (
+                    predicted_rate * self._period > self._force_tolerance
+                )
+            allowance = (change / self._period + predicted_rate) / self._observer_gain
+            implausible_evidence = abs(reading - observed) > self._force_tolerance + allowance
+            for evidence, count, clear, flag, needed in (
+                (stuck_evidence, _STUCK, _CLEAR_STUCK, _STUCK_FLAG, STUCK_SAMPLES),
+                (
+                    implausible_evidence,
+                    _IMPLAUSIBLE,
+                    _CLEAR_IMPLAUSIBLE,
+                    _IMPLAUSIBLE_FLAG,
+                    IMPLAUSIBLE_SAMPLES,
+                ),
+            ):
+                if evidence:
+                    state[count] += 1
+                    state[clear] = 0
+                    if state[count] >= needed:
+                        state[flag] = 1.0
+                else:
+                    state[count] = 0
+                    state[clear] += 1
+                    if state[clear] >= CLEAR_SAMPLES:
+                        state[flag] = 0.0
+            clean = (
+                state[_STUCK] == 0
+                and state[_IMPLAUSIBLE] == 0
+                and state[_STUCK_FLAG] == 0
+                and state[_IMPLAUSIBLE_FLAG] == 0
+            )
+            if clean:
+                # The previous sample: a fault caught at this sample has not reached it.
+                state[_HELD] = previous
+            state[_PREVIOUS] = reading
+            discrete_state.get_mutable_vector(self._state_index).SetFromVector(
+                [T(x) for x in state]
+            )
+
+    return Impl
+
+
+SensorFaultDetector = SensorFaultDetector_[None]

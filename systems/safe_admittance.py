@@ -1,0 +1,393 @@
+"""The paper's admittance law with the safety layer's limits (docs/safety.md).
+
+On the wall-normal axis, with the trusted force F (systems/fault_detector.py), the
+stiffness estimate k_hat (systems/stiffness_estimator.py) and the reduced contact model
+(systems/contact_model.py, m the apparent mass from the plant):
+
+**The law in contact is eq. 10 with a scheduled gain.** With Gamma_s = s Gamma,
+
+    Xr = y + Gamma_s K alpha E_u,
+    dy/dt = Gamma_s K E_u - (dGamma_s/dt) K alpha E_u,
+
+so that d(y + Gamma_s K alpha E_u)/dt = Gamma_s K (E_u + alpha dE_u/dt) exactly: the
+gradient flow of the paper's cost (eq. 8-10) with the positive gain Gamma_s, for which
+eq. 13 gives dV/dt = -(E + alpha dE/dt)^2 K Gamma_s K <= 0 as for any Gamma > 0. The
+noisy force is still never differentiated (y carries the integral). E_u is the force
+error of the paper with the force-bound penalty of systems/optimal_admittance.py,
+E_b = E - mu max(0, F - Fg), capped from above (below).
+
+**Stiffness-aware gain.** s follows (time constant tau_g) the target
+
+    s* = min(1, Gamma*(k_hat) / (margin Gamma)),
+
+Gamma* the critical Gamma of the reduced loop on a wall of stiffness k_hat (Routh-Hurwitz,
+contact_model.critical_gamma, 10-20 % below the full linearization's): the loop gain stays
+a factor `margin` inside the stable region. ds/dt is known, so dGamma_s/dt above is exact.
+
+**Damping along the normal.** Xr also carries -(c / Kp) x' (x' the tip's speed along the
+normal): through the PID's spring that is a damper c, with c the least that gives the
+contact mode the damping ratio zeta_target at Ke_max (contact_model.injected_damping): a
+first contact with less than 0.19 always bounces. At an equilibrium x' = 0: the term adds
+damping and nothing else.
+
+**Approach.** While F < F_c (no contact) the reference may approach the wall no faster
+than v_max, the speed whose impact on a wall of Ke_max peaks at Fmax
+(contact_model.safe_approach_speed, with Kd + c): dy/dt <= v_max - dXd/dt. When F reaches
+F_c the limit is lifted; y and E are continuous there, so Xr does not jump.
+
+**Advance in contact.** A reading that drops (a fault not yet detected, or a real loss of
+force) must not throw the reference into the wall. E_u <= E_cap = v_adv / (Gamma_s K)
+bounds the advance to v_adv and the proportional path's push to alpha v_adv. Over the
+detector's longest delay t_d that moves the reference by at most v_adv (alpha + t_d), and
+a step of the reference into a wall overshoots by (1 + os), os the contact mode's step
+overshoot, so the force rises by at most Kp v_adv (alpha + t_d)(1 + os) before the fault
+is caught; that is Fmax - Fr for
+
+    v_adv = (Fmax - Fr) / (Kp (alpha + t_d) (1 + os)).
+
+Retracting is never limited. Within |E| <= E_cap (normal tracking) the law is exactly the
+paper's; beyond, it pushes less than the paper's would.
+
+**Faults.** While the detector flags the reading, y does not advance (dy/dt <= 0) and the
+law runs on the held reading, so Xr holds (or retracts). When the flag clears it returns
+at the rates above: v_adv in contact, v_max in free motion.
+
+Anti-windup: y + P is kept within [-max_retract, max_push] around Xd by back-calculation
+(time constant 10 ms), as in systems/optimal_admittance.py.
+
+For AutoDiffXd (Linearize), the schedule's inputs that are not the loop's (m, c, v_max,
+v_adv, the branch of each min) are taken at their values: at an equilibrium they are
+frozen, and y, s, E and x' carry the derivatives.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydrake.autodiffutils import AutoDiffXd
+from pydrake.common.value import Value
+from pydrake.systems.framework import BasicVector_, LeafSystem_, ValueProducer
+from pydrake.systems.scalar_conversion import TemplateSystem
+
+from admittance.systems import contact_model
+from admittance.systems.planar_kinematics import PlanarFrameKinematics
+
+__all__ = ["SafeAdmittance", "SafeAdmittance_", "SafetyNumbers"]
+
+# Back-calculation anti-windup time constant, s (as in optimal_admittance).
+WINDUP_TIME_CONSTANT = 0.01
+
+
+def _value(x) -> float:
+    return float(x) if isinstance(x, float | int) else float(x.value())
+
+
+class SafetyNumbers(dict):
+    """The derived numbers of the layer at one state (apparent mass, c, v_max, ...)."""
+
+
+@TemplateSystem.define("SafeAdmittance_", T_list=[float, AutoDiffXd])
+def SafeAdmittance_(T):
+    class Impl(LeafSystem_[T]):
+        """Optimal admittance with a scheduled gain, an approach limit and fault holds.
+
+        State: [y, s] (m, and Gamma_s / Gamma). Outputs: Xr (zero off the normal axis), s.
+
+        .. pydrake_system::
+
+            name: SafeAdmittance
+            input_ports:
+            - measured_force
+            - desired_force
+            - desired_position
+            - desired_velocity
+            - estimated_state
+            - stiffness_estimate
+            - sensor_fault
+            output_ports:
+            - reference_offset
+            - gain_scale
+        """
+
+        def _construct(
+            self,
+            plant,
+            *,
+            frame_name: str = "fingertip",
+            gamma: float,
+            alpha: float,
+            stiffness: float,
+            pid_kp: float,
+            pid_kd: float,
+            max_force: float,
+            force_bound_gain: float,
+            max_push: float,
+            max_retract: float,
+            max_stiffness: float,
+            damping_ratio: float,
+            stability_margin: float,
+            filter_time_constant: float,
+            contact_force: float,
+            detection_delay: float,
+            schedule_time_constant: float = 0.005,
+            normal_axis: int = 0,
+            num_axes: int = 3,
+            converter=None,
+        ) -> None:
+            """
+            Args:
+                plant: finalized MultibodyPlant_[T] of the arm.
+                frame_name: the contact frame.
+                gamma, alpha, stiffness: Gamma, alpha and K of eq. 10 (K = the PID's Kp).
+                pid_kp, pid_kd: the PID's gains along the normal, N/m and N s/m.
+                max_force: Fmax, N (finite).
+                force_bound_gain: mu of the force-bound penalty.
+                max_push, max_retract: bounds of Xr around Xd, m.
+                max_stiffness: Ke_max, the stated upper bound on the wall stiffness, N/m.
+                damping_ratio: zeta_target of the contact mode at Ke_max.
+                stability_margin: the factor between Gamma* and the scheduled Gamma.
+                filter_time_constant: tau of the sensor's filter, s (0 = ideal sensor).
+                contact_force: F_c, N.
+                detection_delay: t_d, the fault detector's longest delay, s.
+                schedule_time_constant: tau_g, s.
+                normal_axis: the wall normal's index in X.
+                num_axes: size of Xr.
+            """
+            LeafSystem_[T].__init__(self, converter=converter)
+            positive = {
+                "gamma": gamma,
+                "stiffness": stiffness,
+                "pid_kp": pid_kp,
+                "max_force": max_force,
+                "force_bound_gain": force_bound_gain,
+                "max_push": max_push,
+                "max_retract": max_retract,
+                "max_stiffness": max_stiffness,
+                "damping_ratio": damping_ratio,
+                "stability_margin": stability_margin,
+                "contact_force": contact_force,
+                "detection_delay": detection_delay,
+                "schedule_time_constant": schedule_time_constant,
+            }
+            for name, value in positive.items():
+                if not (math.isfinite(value) and value > 0):
+                    raise ValueError(f"{name} must be finite and > 0, got {value}")
+            for name, value in (
+                ("alpha", alpha),
+                ("pid_kd", pid_kd),
+                ("filter_time_constant", filter_time_constant),
+            ):
+                if not (math.isfinite(value) and value >= 0):
+                    raise ValueError(f"{name} must be finite and >= 0, got {value}")
+            self._plant = plant
+            self._frame_name = frame_name
+            self._args = dict(
+                positive,
+                alpha=float(alpha),
+                pid_kd=float(pid_kd),
+                filter_time_constant=float(filter_time_constant),
+                normal_axis=int(normal_axis),
+                num_axes=int(num_axes),
+            )
+            self._gamma = float(gamma)
+            self._alpha = float(alpha)
+            self._stiffness = float(stiffness)
+            self._kp = float(pid_kp)
+            self._kd = float(pid_kd)
+            self._max_force = float(max_force)
+            self._mu = float(force_bound_gain)
+            self._max_push = float(max_push)
+            self._max_retract = float(max_retract)
+            self._max_stiffness = float(max_stiffness)
+            self._damping_ratio = float(damping_ratio)
+            self._margin = float(stability_margin)
+            self._tau_filter = float(filter_time_constant)
+            self._contact_force = float(contact_force)
+            self._detection_delay = float(detection_delay)
+            self._tau_schedule = float(schedule_time_constant)
+            self._axis = int(normal_axis)
+            self._num_axes = int(num_axes)
+            self._kinematics = PlanarFrameKinematics(plant, frame_name)
+            self._plant_context = plant.CreateDefaultContext()
+            nq, nv = plant.num_positions(), plant.num_velocities()
+            self._num_positions = nq
+
+            self.measured_force_input = self.DeclareVectorInputPort("measured_force", 1)
+            self.desired_force_input = self.DeclareVectorInputPort("desired_force", 1)
+            self.desired_position_input = self.DeclareVectorInputPort("desired_position", num_axes)
+            self.desired_velocity_input = self.DeclareVectorInputPort("desired_velocity", num_axes)
+            self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", nq + nv)
+            self.stiffness_estimate_input = self.DeclareVectorInputPort("stiffness_estimate", 1)
+            self.sensor_fault_input = self.DeclareVectorInputPort("sensor_fault", 1)
+            self.DeclareContinuousState(BasicVector_[T]([0.0, 1.0]))
+            self._law_cache = self.DeclareCacheEntry(
+                description="reference offset and state rates",
+                value_producer=ValueProducer(allocate=Value[object]().Clone, calc=self._CalcLaw),
+                prerequisites_of_calc={self.xc_ticket(), self.all_input_ports_ticket()},
+            )
+            self.reference_offset_output = self.DeclareVectorOutputPort(
+                "reference_offset",
+                num_axes,
+                self._CalcOutput,
+                prerequisites_of_calc={self._law_cache.ticket()},
+            )
+            self.gain_scale_output = self.DeclareVectorOutputPort(
+                "gain_scale",
+                1,
+                lambda context, output: output.SetFromVector(
+                    [context.get_continuous_state_vector()[1]]
+                ),
+                prerequisites_of_calc={self.xc_ticket()},
+            )
+
+        def _construct_copy(self, other, converter=None) -> None:
+            args = dict(other._args)
+            Impl._construct(
+                self,
+                other._plant.ToScalarType[T](),
+                frame_name=other._frame_name,
+                converter=converter,
+                **args,
+            )
+
+        # --- the derived numbers ------------------------------------------------------
+        def numbers(self, context) -> SafetyNumbers:
+            """m, c, v_max, v_adv, the target schedule and the contact state at `context`."""
+            return self._law_cache.Eval(context)[2]
+
+        def _derived(self, state, jacobian, stiffness_estimate: float, force_reference: float):
+            """The schedule's numbers from the plant state and J (values only)."""
+            plant = self._plant
+            values = state
+            if T is not float:
+                values = np.array([T(_value(x)) for x in state])
+                jacobian = np.array([[_value(x) for x in row] for row in jacobian])
+            plant.SetPositionsAndVelocities(self._plant_context, values)
+            mass_matrix = plant.CalcMassMatrix(self._plant_context)
+            if T is not float:
+                mass_matrix = np.array([[_value(x) for x in row] for row in mass_matrix])
+            mass = contact_model.apparent_mass(mass_matrix, jacobian[self._axis])
+            damping = contact_model.injected_damping(
+                mass, self._kp, self._kd, self._max_stiffness, self._damping_ratio
+            )
+            total_damping = self._kd + damping
+            approach_speed = contact_model.safe_approach_speed(
+                self._max_force, mass, self._kp, total_damping, self._max_stiffness
+            )
+            stiffest = max(self._max_stiffness, stiffness_estimate)
+            overshoot = contact_model.step_overshoot(
+                contact_model.damping_ratio(mass, self._kp, total_damping, stiffest)
+            )
+            advance_speed = max(self._max_force - force_reference, 0.0) / (
+                self._kp * (self._alpha + self._detection_delay) * (1.0 + overshoot)
+            )
+            critical = contact_model.critical_gamma(
+                stiffness_estimate,
+                mass=mass,
+                kp=self._kp,
+                kd=total_damping,
+                alpha=self._alpha,
+                filter_time_constant=self._tau_filter,
+                admittance_stiffness=self._stiffness,
+            )
+            return SafetyNumbers(
+                apparent_mass=mass,
+                injected_damping=damping,
+                approach_speed=approach_speed,
+                advance_speed=advance_speed,
+                critical_gamma=critical,
+                schedule_target=min(1.0, critical / (self._margin * self._gamma)),
+            )
+
+        # --- initial conditions --------------------------------------------------------
+        def start_at_tip(self, context) -> None:
+            """Xc = the tip's position along the normal, s = its target (a run's start).
+
+            Raises:
+                ValueError: the tip is farther from Xd than the travel bounds of Xr allow
+                    (the reference could not start at the tip).
+            """
+            state = self.estimated_state_input.Eval(context)
+            self._kinematics.set_state(state)
+            tip = _value(self._kinematics.pose()[self._axis])
+            desired = _value(self.desired_position_input.Eval(context)[self._axis])
+            offset = tip - desired
+            if not -self._max_retract <= offset <= self._max_push:
+                raise ValueError(
+                    f"the tip starts {offset:+.4g} m from Xd along the normal, outside "
+                    f"[-{self._max_retract:g}, {self._max_push:g}] m"
+                )
+            self._set_offset(context, offset)
+
+        def set_equilibrium(self, context, offset: float) -> None:
+            """Xr = `offset` and s at its target (an equilibrium of the analysis)."""
+            self._set_offset(context, offset)
+
+        def _set_offset(self, context, offset: float) -> None:
+            estimate = _value(self.stiffness_estimate_input.Eval(context)[0])
+            reference = _value(self.desired_force_input.Eval(context)[0])
+            state = self.estimated_state_input.Eval(context)
+            self._kinematics.set_state(state)
+            numbers = self._derived(state, self._kinematics.jacobian(), estimate, reference)
+            scale = numbers["schedule_target"]
+            context.SetContinuousState([0.0, scale])
+            proportional = self._law_cache.Eval(context)[3]  # Gamma_s K alpha E_u
+            context.SetContinuousState([offset - _value(proportional), scale])
+
+        # --- the law ------------------------------------------------------------------
+        def _CalcLaw(self, context, value) -> None:
+            y, scale = context.get_continuous_state_vector().CopyToVector()
+            state = self.estimated_state_input.Eval(context)
+            force = self.measured_force_input.Eval(context)[0]
+            reference = self.desired_force_input.Eval(context)[0]
+            estimate = self.stiffness_estimate_input.Eval(context)[0]
+            fault = _value(self.sensor_fault_input.Eval(context)[0]) > 0.5
+            # The tip's speed along the normal (carries derivatives: the injected damper).
+            self._kinematics.set_state(state)
+            jacobian = self._kinematics.jacobian()
+            speed = jacobian[self._axis] @ state[self._num_positions :]
+            numbers = self._derived(state, jacobian, _value(estimate), _value(reference))
+            numbers["in_contact"] = _value(force) >= self._contact_force
+
+            scale_rate = (numbers["schedule_target"] - scale) / self._tau_schedule
+            integral_gain = self._gamma * self._stiffness * scale  # Gamma_s K
+            error = reference - force
+            guard = 0.5 * (_value(reference) + self._max_force)
+            if _value(force) > guard:
+                error = error - self._mu * (force - guard)
+            cap = numbers["advance_speed"] / _value(integral_gain)
+            if _value(error) > cap:
+                error = T(cap)
+            proportional = integral_gain * self._alpha * error
+            rate = integral_gain * error - self._gamma * self._stiffness * scale_rate * (
+                self._alpha * error
+            )
+            desired_speed = self.desired_velocity_input.Eval(context)[self._axis]
+            if not numbers["in_contact"]:
+                approach = numbers["approach_speed"] - desired_speed
+                if _value(rate) > _value(approach):
+                    rate = approach
+            if fault and _value(rate) > 0.0:
+                rate = T(0.0)
+            law = y + proportional
+            law_value = _value(law)
+            if law_value > self._max_push or law_value < -self._max_retract:
+                bound = self._max_push if law_value > 0 else -self._max_retract
+                rate = rate + (T(bound) - law) / WINDUP_TIME_CONSTANT
+                law = T(bound)
+            offset = law - (numbers["injected_damping"] / self._kp) * speed
+            output = [T(0.0)] * self._num_axes
+            output[self._axis] = offset
+            value.set_value((np.array(output), np.array([rate, scale_rate]), numbers, proportional))
+
+        def DoCalcTimeDerivatives(self, context, derivatives) -> None:
+            derivatives.get_mutable_vector().SetFromVector(self._law_cache.Eval(context)[1])
+
+        def _CalcOutput(self, context, output) -> None:
+            output.SetFromVector(self._law_cache.Eval(context)[0])
+
+    return Impl
+
+
+SafeAdmittance = SafeAdmittance_[None]

@@ -1,0 +1,247 @@
+"""An online estimate of the contact stiffness from the measured force and the tip's motion.
+
+No model of the wall: only the trusted force reading F (systems/fault_detector.py) and the
+fingertip's own position x along the wall normal, from the plant's state, sampled at the
+sensor's sample period T. For the linear spring of eq. 4 on a static wall every two points
+in contact lie on one line, F = Ke (x - Xe), so their secant slope is Ke, whatever Xe is:
+
+    k_obs = (F[k] - F_a) / (x[k] - x_a),
+
+with (x_a, F_a) an anchor sample in contact (F >= F_c). The secant is taken only when
+the force has moved far from the anchor, |F[k] - F_a| >= dF_min (so the reading's noise
+is a small share of it), and only if force and position moved the same way (a spring
+pushes back harder when pressed deeper); then the sample becomes the new anchor. The
+anchor is dropped in free motion and while the reading is not trusted.
+
+The estimate moves toward k_obs in log scale (the stiffness spans decades):
+
+    ln k_hat <- ln k_hat + g (ln k_obs - ln k_hat),
+
+g = 1 toward a stiffer wall, with k_obs limited to 2 k_hat per sample (a stiffness jump at
+fixed penetration shows a force step with almost no motion: its secant is meaningless,
+and the next samples, as the law backs off, show the new slope), and g = 3/4 toward a
+softer one, but only during the loading that follows a contact's onset (the first
+`loading_time`, 0.5 s): its three or four informative samples bring the prior to within
+(1/4)^3 of the wall's log-distance from it. Later in a contact the estimate only rises: a
+wall that moves while in contact adds its travel to x - x_a without a force change, so
+the secant of a later loading (a receding wall that stops) would be biased low, the unsafe
+way. Before any contact k_hat is the prior, the scenario's upper bound on the wall's
+stiffness: the gains are the most cautious until the wall has shown how soft it is.
+
+In an analysis diagram the estimate is frozen (``frozen_estimate``): no state, the
+constant as output, as the gain schedule is frozen at an equilibrium.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydrake.autodiffutils import AutoDiffXd
+from pydrake.systems.framework import BasicVector_, LeafSystem_
+from pydrake.systems.scalar_conversion import TemplateSystem
+
+from admittance.systems.planar_kinematics import PlanarFrameKinematics
+
+__all__ = ["StiffnessEstimator", "StiffnessEstimator_"]
+
+# Per-sample gains of the log-scale update toward a stiffer and a softer observation, and
+# the largest step toward a stiffer one (a factor).
+GAIN_UP = 1.0
+GAIN_DOWN = 0.75
+MAX_RISE = 2.0
+
+# How long after a contact's onset the estimate may fall, s.
+LOADING_TIME = 0.5
+
+# Discrete state layout: ln k_hat, anchor position, anchor force, the contact's onset
+# time, anchored (0/1).
+_LOG_ESTIMATE, _ANCHOR_POSITION, _ANCHOR_FORCE, _ONSET, _ANCHORED = 0, 1, 2, 3, 4
+
+
+def _positive(name: str, value: float) -> float:
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be > 0, got {value}")
+    return float(value)
+
+
+def _value(x) -> float:
+    return float(x) if isinstance(x, float | int) else float(x.value())
+
+
+def update_estimate(
+    log_estimate: float,
+    anchor: tuple[float, float, float] | None,
+    position: float,
+    force: float,
+    time: float,
+    *,
+    contact_force: float,
+    informative_force: float,
+    trusted: bool = True,
+) -> tuple[float, tuple[float, float, float] | None]:
+    """One sample of the estimator (module docstring): the new (ln k_hat, anchor).
+
+    Args:
+        log_estimate: ln k_hat before the sample.
+        anchor: (x_a, F_a, the contact's onset time), or None when there is none.
+        position: x[k], m; force: F[k], N; time: t[k], s.
+        contact_force: F_c; informative_force: dF_min, N.
+        trusted: the reading may be used.
+    """
+    if not (trusted and math.isfinite(force)) or force < contact_force:
+        return log_estimate, None
+    if anchor is None:
+        return log_estimate, (position, force, time)
+    onset = anchor[2]
+    force_change = force - anchor[1]
+    if abs(force_change) < informative_force:
+        return log_estimate, anchor
+    position_change = position - anchor[0]
+    if force_change * position_change > 0:
+        log_observed = math.log(force_change / position_change)
+        if log_observed > log_estimate:
+            limited = min(log_observed, log_estimate + math.log(MAX_RISE))
+            log_estimate += GAIN_UP * (limited - log_estimate)
+        elif time - onset <= LOADING_TIME:
+            log_estimate += GAIN_DOWN * (log_observed - log_estimate)
+    return log_estimate, (position, force, onset)
+
+
+@TemplateSystem.define("StiffnessEstimator_", T_list=[float, AutoDiffXd])
+def StiffnessEstimator_(T):
+    class Impl(LeafSystem_[T]):
+        """Sampled secant stiffness between anchor samples in contact (module docstring).
+
+        State (discrete, period T): [ln k_hat, x_a, F_a, onset, anchored]. Output: k_hat, N/m.
+
+        .. pydrake_system::
+
+            name: StiffnessEstimator
+            input_ports:
+            - measured_force
+            - estimated_state
+            - sensor_fault
+            output_ports:
+            - stiffness_estimate
+        """
+
+        def _construct(
+            self,
+            plant,
+            *,
+            frame_name: str = "fingertip",
+            period: float,
+            prior_stiffness: float,
+            contact_force: float,
+            informative_force: float,
+            normal_axis: int = 0,
+            frozen_estimate: float | None = None,
+            converter=None,
+        ) -> None:
+            """
+            Args:
+                plant: finalized MultibodyPlant_[T] of the arm.
+                frame_name: the contact frame.
+                period: T, the sample period (the sensor's), s.
+                prior_stiffness: k_prior, the estimate before any contact, N/m.
+                contact_force: F_c, the threshold of contact, N.
+                informative_force: dF_min, N.
+                normal_axis: the wall normal's index in X = (x, y, theta).
+                frozen_estimate: None, or a constant estimate (N/m) for analysis.
+            """
+            LeafSystem_[T].__init__(self, converter=converter)
+            self._plant = plant
+            self._arguments = dict(
+                frame_name=frame_name,
+                period=period,
+                prior_stiffness=prior_stiffness,
+                contact_force=contact_force,
+                informative_force=informative_force,
+                normal_axis=normal_axis,
+                frozen_estimate=frozen_estimate,
+            )
+            self._period = _positive("period", period)
+            self._prior = _positive("prior_stiffness", prior_stiffness)
+            self._contact_force = _positive("contact_force", contact_force)
+            self._informative_force = _positive("informative_force", informative_force)
+            self._normal_axis = int(normal_axis)
+            self._frozen = (
+                None if frozen_estimate is None else _positive("frozen_estimate", frozen_estimate)
+            )
+            self._kinematics = PlanarFrameKinematics(plant, frame_name)
+            nx = plant.num_positions() + plant.num_velocities()
+            self.measured_force_input = self.DeclareVectorInputPort("measured_force", 1)
+            self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", nx)
+            self.sensor_fault_input = self.DeclareVectorInputPort("sensor_fault", 1)
+            if self._frozen is None:
+                self._state_index = self.DeclareDiscreteState(
+                    BasicVector_[T]([math.log(self._prior), 0.0, 0.0, 0.0, 0.0])
+                )
+                self.DeclarePeriodicDiscreteUpdateEvent(
+                    period_sec=self._period, offset_sec=0.0, update=self._Update
+                )
+                calc, ticket = self._CalcEstimate, self.xd_ticket()
+            else:
+                calc, ticket = self._CalcFrozen, self.nothing_ticket()
+            self.stiffness_estimate_output = self.DeclareVectorOutputPort(
+                "stiffness_estimate", 1, calc, prerequisites_of_calc={ticket}
+            )
+
+        def _construct_copy(self, other, converter=None) -> None:
+            Impl._construct(
+                self, other._plant.ToScalarType[T](), converter=converter, **other._arguments
+            )
+
+        @property
+        def prior_stiffness(self) -> float:
+            return self._prior
+
+        @property
+        def contact_force(self) -> float:
+            return self._contact_force
+
+        def set_estimate(self, context, stiffness: float) -> None:
+            """Sets k_hat (N/m) and drops the anchor."""
+            context.get_mutable_discrete_state(self._state_index).SetFromVector(
+                [math.log(_positive("stiffness", stiffness)), 0.0, 0.0, 0.0, 0.0]
+            )
+
+        def _CalcFrozen(self, context, output) -> None:
+            output.SetFromVector([T(self._frozen)])
+
+        def _CalcEstimate(self, context, output) -> None:
+            log_estimate = context.get_discrete_state(self._state_index).CopyToVector()[0]
+            output.SetFromVector([T(math.exp(_value(log_estimate)))])
+
+        def _Update(self, context, discrete_state) -> None:
+            state = [
+                _value(x) for x in context.get_discrete_state(self._state_index).CopyToVector()
+            ]
+            force = _value(self.measured_force_input.Eval(context)[0])
+            trusted = _value(self.sensor_fault_input.Eval(context)[0]) < 0.5
+            plant_state = self.estimated_state_input.Eval(context)
+            self._kinematics.set_state(np.array([T(_value(x)) for x in plant_state]))
+            position = _value(self._kinematics.pose()[self._normal_axis])
+            anchor = (
+                (state[_ANCHOR_POSITION], state[_ANCHOR_FORCE], state[_ONSET])
+                if state[_ANCHORED]
+                else None
+            )
+            log_estimate, anchor = update_estimate(
+                state[_LOG_ESTIMATE],
+                anchor,
+                position,
+                force,
+                _value(context.get_time()),
+                contact_force=self._contact_force,
+                informative_force=self._informative_force,
+                trusted=trusted,
+            )
+            new = [log_estimate, *(anchor if anchor else (0.0, 0.0, 0.0)), float(bool(anchor))]
+            discrete_state.get_mutable_vector(self._state_index).SetFromVector([T(x) for x in new])
+
+    return Impl
+
+
+StiffnessEstimator = StiffnessEstimator_[None]

@@ -1,0 +1,244 @@
+"""The safety layer's law (systems/safe_admittance.py) at fixed inputs, by hand: eq. 10 with
+a scheduled gain in contact, the approach limit, the cap on the push, the fault hold and the
+damping along the normal; and every system of the layer converts to AutoDiffXd."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from pydrake.autodiffutils import AutoDiffXd, InitializeAutoDiff
+
+from admittance.diagrams.closed_loop import SolvePlanarInverseKinematics
+from admittance.systems import contact_model as model
+from admittance.systems.contact_force_observer import ContactForceObserver
+from admittance.systems.fault_detector import SensorFaultDetector
+from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.safe_admittance import SafeAdmittance
+from admittance.systems.stiffness_estimator import StiffnessEstimator
+
+GAMMA, ALPHA, KP, KD = 1e-5, 0.1, 2500.0, 50.0
+FR, FMAX, MU = 5.0, 10.0, 4.0
+FILTER = 1.0 / (2.0 * math.pi * 5000.0)
+POSE = [0.2, -0.25, math.pi / 2]
+# The fingertip's apparent mass along x at POSE (tests/test_safety_model.py).
+MASS = 0.9217
+# Kd + c = 2 zeta sqrt(m (Kp + Ke_max)) at zeta = 0.25, Ke_max = 1e6.
+TOTAL_DAMPING = 0.5 * math.sqrt(MASS * (KP + 1e6))
+# v_adv = (Fmax - Fr) / (Kp (alpha + t_d)(1 + os)), os = exp(-0.25 pi / sqrt(1 - 0.0625))
+# = 0.4443 at zeta = 0.25, t_d = 20 ms: 5 / (2500 * 0.12 * 1.4443) = 11.539 mm/s.
+ADVANCE = 5.0 / (2500.0 * 0.12 * (1.0 + math.exp(-0.25 * math.pi / math.sqrt(0.9375))))
+
+
+def _law(plant):
+    return SafeAdmittance(
+        plant,
+        gamma=GAMMA,
+        alpha=ALPHA,
+        stiffness=KP,
+        pid_kp=KP,
+        pid_kd=KD,
+        max_force=FMAX,
+        force_bound_gain=MU,
+        max_push=0.01,
+        max_retract=0.1,
+        max_stiffness=1e6,
+        damping_ratio=0.25,
+        stability_margin=3.0,
+        filter_time_constant=FILTER,
+        contact_force=0.5,
+        detection_delay=0.02,
+    )
+
+
+@pytest.fixture
+def law(arm_plant):
+    system = _law(arm_plant)
+    context = system.CreateDefaultContext()
+    q = SolvePlanarInverseKinematics(arm_plant, "fingertip", POSE, [-0.45, 1.66, 0.36])
+    system.estimated_state_input.FixValue(context, np.concatenate([q, np.zeros(3)]))
+    system.desired_force_input.FixValue(context, [FR])
+    system.desired_position_input.FixValue(context, POSE)
+    system.desired_velocity_input.FixValue(context, [0.0, 0.0, 0.0])
+    system.stiffness_estimate_input.FixValue(context, [5e4])
+    system.sensor_fault_input.FixValue(context, [0.0])
+    system.measured_force_input.FixValue(context, [FR])
+    return system, context, q
+
+
+def _evaluate(law, force, y=0.001, scale=1.0, **inputs):
+    system, context, _ = law
+    system.measured_force_input.FixValue(context, [force])
+    for name, value in inputs.items():
+        system.GetInputPort(name).FixValue(context, np.atleast_1d(value))
+    context.SetContinuousState([y, scale])
+    offset = system.reference_offset_output.Eval(context)[0]
+    rates = system.EvalTimeDerivatives(context).CopyToVector()
+    return offset, rates[0], rates[1]
+
+
+def test_the_numbers_at_the_paper_s_pose(law):
+    system, context, _ = law
+    numbers = system.numbers(context)
+    assert numbers["apparent_mass"] == pytest.approx(MASS, abs=5e-4)
+    assert KD + numbers["injected_damping"] == pytest.approx(TOTAL_DAMPING, rel=1e-3)
+    assert numbers["advance_speed"] == pytest.approx(ADVANCE, rel=1e-6)
+    assert ADVANCE == pytest.approx(11.539e-3, rel=1e-4)
+
+
+def test_in_contact_the_law_is_eq_10_with_the_scheduled_gain(law):
+    """E = 0.2 N (inside the cap): Xr = y + Gamma K alpha E and dy/dt = Gamma K E, i.e.
+    Xr = Gamma K [z + alpha E] of the paper, with Gamma K = 0.025 m/(N s)."""
+    offset, y_rate, scale_rate = _evaluate(law, FR - 0.2)
+    assert scale_rate == 0.0  # Gamma* at 5e4 N/m is far above 3 Gamma: s = 1
+    assert offset == pytest.approx(0.001 + 0.025 * ALPHA * 0.2, rel=1e-12)
+    assert y_rate == pytest.approx(0.025 * 0.2, rel=1e-12)
+
+
+def test_a_changing_gain_keeps_the_gradient_flow_exact(law):
+    """With s moving (ds/dt != 0) and E constant, d(Xr)/dt = dy/dt + Gamma K alpha E ds/dt
+    must still be Gamma_s K E: the gradient flow of eq. 8-10 with the gain Gamma_s."""
+    error = 0.2
+    _, y_rate, scale_rate = _evaluate(law, FR - error, scale=0.5)
+    assert scale_rate == pytest.approx((1.0 - 0.5) / 0.005)
+    offset_rate = y_rate + GAMMA * KP * ALPHA * error * scale_rate
+    assert offset_rate == pytest.approx(0.5 * GAMMA * KP * error, rel=1e-12)
+
+
+def test_stiff_walls_scale_gamma_to_a_third_of_the_critical_one(law):
+    system, context, _ = law
+    system.stiffness_estimate_input.FixValue(context, [1e7])
+    critical = model.critical_gamma(
+        1e7,
+        mass=MASS,
+        kp=KP,
+        kd=TOTAL_DAMPING,
+        alpha=ALPHA,
+        filter_time_constant=FILTER,
+        admittance_stiffness=KP,
+    )
+    assert critical < 3 * GAMMA  # the schedule acts
+    assert system.numbers(context)["schedule_target"] == pytest.approx(
+        critical / (3 * GAMMA), rel=2e-3
+    )
+
+
+def test_free_motion_approaches_no_faster_than_the_impact_bound(law):
+    """No contact (F < F_c): dy/dt = v_max - dXd/dt; v_max from Fmax, m, Kp, Kd + c and
+    Ke_max (tests/test_safety_model.py checks the formula by hand)."""
+    approach = model.safe_approach_speed(FMAX, MASS, KP, TOTAL_DAMPING, 1e6)
+    assert approach == pytest.approx(9.27e-3, rel=2e-3)
+    _, y_rate, _ = _evaluate(law, 0.0)
+    assert y_rate == pytest.approx(approach, rel=2e-3)
+    # A plan that moves toward the wall at 2 cm/s: the offset backs off, Xc keeps v_max.
+    _, y_rate, _ = _evaluate(law, 0.0, desired_velocity=[0.02, 0.0, 0.0])
+    assert 0.02 + y_rate == pytest.approx(approach, rel=2e-3)
+
+
+def test_the_push_is_capped_in_contact_and_retreat_is_not(law):
+    """F = 1 N: E = 4 N, beyond E_cap = v_adv / (Gamma K) = 0.46 N: dy/dt = v_adv and the
+    proportional path pushes alpha v_adv. F = 9 N (above Fg = 7.5 N): E_b = -4 - 4 (1.5)
+    = -10 N, uncapped: dy/dt = 0.025 (-10) = -0.25 m/s."""
+    offset, y_rate, _ = _evaluate(law, 1.0)
+    assert y_rate == pytest.approx(ADVANCE, rel=1e-6)
+    assert offset == pytest.approx(0.001 + ALPHA * ADVANCE, rel=1e-9)
+    offset, y_rate, _ = _evaluate(law, 9.0)
+    assert y_rate == pytest.approx(-0.25, rel=1e-12)
+    assert offset == pytest.approx(0.001 - 0.025 * ALPHA * 10.0, rel=1e-12)
+
+
+def test_a_flagged_reading_holds_the_reference_but_lets_it_retreat(law):
+    _, y_rate, _ = _evaluate(law, 1.0, sensor_fault=[1.0])
+    assert y_rate == 0.0
+    _, y_rate, _ = _evaluate(law, 6.0, sensor_fault=[1.0])
+    assert y_rate == pytest.approx(0.025 * -1.0)
+
+
+def test_the_reference_carries_a_damper_along_the_normal(arm_plant, law):
+    """A tip moving at 1 cm/s along +x: Xr is lower by (c / Kp) 0.01 m, c = Kd_total - Kd:
+    through the PID's spring, a force of -c x'."""
+    system, context, q = law
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics.set_state(np.concatenate([q, np.zeros(3)]))
+    v = np.linalg.solve(kinematics.jacobian(), [0.01, 0.0, 0.0])
+    still, _, _ = _evaluate(law, FR - 0.2)
+    moving, _, _ = _evaluate(law, FR - 0.2, estimated_state=np.concatenate([q, v]))
+    c = system.numbers(context)["injected_damping"]
+    assert c == pytest.approx(TOTAL_DAMPING - KD, rel=1e-3)
+    assert moving - still == pytest.approx(-c / KP * 0.01, rel=1e-3)
+
+
+def test_the_offset_stays_within_its_travel_with_back_calculation(law):
+    offset, y_rate, _ = _evaluate(law, FR - 0.2, y=0.02)
+    assert offset == pytest.approx(0.01)
+    unclamped = 0.02 + 0.025 * ALPHA * 0.2
+    assert y_rate == pytest.approx(0.025 * 0.2 + (0.01 - unclamped) / 0.01)
+
+
+def test_a_run_starts_with_the_reference_at_the_tip(arm_plant, law):
+    system, context, _ = law
+    q = SolvePlanarInverseKinematics(
+        arm_plant, "fingertip", [0.14, -0.25, POSE[2]], [-0.7, 1.7, 0.5]
+    )
+    system.estimated_state_input.FixValue(context, np.concatenate([q, np.zeros(3)]))
+    system.measured_force_input.FixValue(context, [0.0])
+    system.start_at_tip(context)
+    # Xc = Xd + Xr = 0.2 + Xr = 0.14: the arm at rest is not pulled when the run starts.
+    assert POSE[0] + system.reference_offset_output.Eval(context)[0] == pytest.approx(0.14)
+
+
+def test_every_system_of_the_layer_converts_to_autodiff(arm_plant):
+    """Linearize converts the whole loop: each block must convert and evaluate, and the
+    law's rates carry derivatives with respect to its state and the tip's velocity."""
+    observer = ContactForceObserver(arm_plant)
+    estimator = StiffnessEstimator(
+        arm_plant, period=0.005, prior_stiffness=1e6, contact_force=0.5, informative_force=1.0
+    )
+    detector = SensorFaultDetector(
+        arm_plant,
+        period=0.005,
+        noise_std=0.02,
+        saturation_force=111.0,
+        contact_force=0.5,
+        force_tolerance=1.1,
+        observer_gain=100.0,
+    )
+    q = SolvePlanarInverseKinematics(arm_plant, "fingertip", POSE, [-0.45, 1.66, 0.36])
+    state = InitializeAutoDiff(np.concatenate([q, [0.0, 0.0, 0.0]]))[:, 0]
+    for system in (observer, estimator, detector, _law(arm_plant)):
+        converted = system.ToAutoDiffXd()
+        context = converted.CreateDefaultContext()
+        for index in range(converted.num_input_ports()):
+            port = converted.get_input_port(index)
+            if port.get_name() == "estimated_state":
+                port.FixValue(context, state)
+            elif port.get_name() == "desired_position":
+                port.FixValue(context, [AutoDiffXd(x) for x in POSE])
+            else:
+                port.FixValue(context, [AutoDiffXd(1.0)] * port.size())
+        for index in range(converted.num_output_ports()):
+            converted.get_output_port(index).Eval(context)
+        if context.num_continuous_states():
+            converted.EvalTimeDerivatives(context)
+        if context.num_discrete_state_groups():
+            # Twice: the first sample only records the reading (no previous one yet).
+            update = converted.EvalUniquePeriodicDiscreteUpdate(context)
+            context.get_mutable_discrete_state(0).SetFromVector(update.get_vector(0).CopyToVector())
+            converted.EvalUniquePeriodicDiscreteUpdate(context)
+    # The law: its offset depends on the joint velocities (the damper) with gradient
+    # -(c / Kp) J_x.
+    law = _law(arm_plant).ToAutoDiffXd()
+    context = law.CreateDefaultContext()
+    law.estimated_state_input.FixValue(context, state)
+    law.desired_force_input.FixValue(context, [AutoDiffXd(FR)])
+    law.desired_position_input.FixValue(context, [AutoDiffXd(x) for x in POSE])
+    law.desired_velocity_input.FixValue(context, [AutoDiffXd(0.0)] * 3)
+    law.stiffness_estimate_input.FixValue(context, [AutoDiffXd(5e4)])
+    law.sensor_fault_input.FixValue(context, [AutoDiffXd(0.0)])
+    law.measured_force_input.FixValue(context, [AutoDiffXd(FR)])
+    gradient = law.reference_offset_output.Eval(context)[0].derivatives()
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics.set_state(np.concatenate([q, np.zeros(3)]))
+    c = TOTAL_DAMPING - KD
+    assert gradient[3:] == pytest.approx(-c / KP * kinematics.jacobian()[0], rel=1e-3)
