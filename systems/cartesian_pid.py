@@ -352,7 +352,8 @@ def _check_frame_actuated(plant, frame_name: str) -> None:
     }
     for joint_index in plant.GetJointIndices():
         joint = plant.get_joint(joint_index)
-        if joint.num_velocities() == 0 or joint_index in actuated:
+        # (A weld moves no body: Drake's GetBodiesKinematicallyAffectedBy gives none for it.)
+        if joint_index in actuated:
             continue
         if body_index in plant.GetBodiesKinematicallyAffectedBy([joint_index]):
             raise ValueError(

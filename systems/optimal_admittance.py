@@ -193,10 +193,6 @@ def OptimalAdmittanceLaw_(T):
             return list(self._axes)
 
         @property
-        def num_axes(self) -> int:
-            return self._num_axes
-
-        @property
         def period(self) -> float:
             return self._period
 

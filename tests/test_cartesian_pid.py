@@ -10,9 +10,11 @@ import pytest
 from pydrake.autodiffutils import AutoDiffXd
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.analysis import Simulator
 
-from admittance.systems.cartesian_pid import CartesianPid
+from admittance.systems.cartesian_pid import CartesianPid, CartesianPidLaw
+from admittance.urdf import PLANAR_ARM_URDF
 
 LENGTHS = (0.20, 0.20, 0.10)
 KP, KD, KI = [2500.0, 2500.0, 1000.0], [50.0, 50.0, 5.0], [200.0, 200.0, 200.0]
@@ -424,3 +426,52 @@ def test_sampled_pid_latches_its_first_sample_at_t_0(arm_plant):
     Simulator(pid, context).AdvanceTo(1.5 * period)
     expected = J.T @ (np.array(KP) * error + np.array(KI) * period * error)
     np.testing.assert_allclose(pid.actuation_output.Eval(context), expected, rtol=1e-12)
+
+
+def test_the_law_alone_is_keyword_only_continuous_by_default_and_reads_its_integral(arm_plant):
+    """``CartesianPidLaw`` is public (a Diagram of one's own can hold it): its gains are
+    keyword-only as the PID's, it is continuous unless given a period, and its z is an
+    input (the Integrator's state in ``CartesianPid``), which it refuses to set itself."""
+    with pytest.raises(TypeError):
+        CartesianPidLaw(arm_plant, KP, KD, KI)
+    law = CartesianPidLaw(arm_plant, kp=KP, kd=KD, ki=KI)
+    assert law.period == 0.0
+    assert law.HasOutputPort("actuation_and_integral_rate")
+    with pytest.raises(ValueError, match="integral is its input"):
+        law.set_integral(law.CreateDefaultContext(), np.zeros(3))
+
+
+def test_holding_integral_of_a_task_with_fewer_coordinates_than_joints(arm_plant):
+    """(x, y) on the three-joint arm: J is 2 x 3 and J^T Ki z = tau is solved in the least
+    squares sense. For tau = J^T F (in the range of J^T), the solution is exact: z = F / Ki.
+    Measured relative error 2e-16; 1e-12 leaves room for the rounding of the solve."""
+    pid = CartesianPid(arm_plant, kp=KP[:2], kd=KD[:2], ki=KI[:2], coordinates=("x", "y"))
+    q = np.array([-0.45, 1.66, 0.36])
+    _, J = eq18(q)
+    force = np.array([3.0, -7.0])
+    integral = pid.holding_integral(np.r_[q, 0.0, 0.0, 0.0], J[:2].T @ force)
+    np.testing.assert_allclose(integral, force / KI[:2], rtol=1e-12)
+
+
+def test_holding_integral_leaves_the_bodies_the_arm_does_not_move_alone():
+    """The arm and a free box in one plant: J is 3 x 9 (zero columns for the box's six
+    velocities) and only the arm's three actuated rows of J^T Ki z = tau are solved; the
+    generalized force on the box (its weight here) is another controller's. With the arm's
+    tau = J^T F, z = F / Ki (relative error measured 3e-15; 1e-12 as above)."""
+    plant = MultibodyPlant(time_step=0.0)
+    (arm,) = Parser(plant).AddModels(PLANAR_ARM_URDF)
+    plant.AddRigidBody("box", arm, SpatialInertia.SolidBoxWithMass(1.0, 0.1, 0.1, 0.1))
+    plant.Finalize()
+    assert (plant.num_velocities(), plant.num_actuated_dofs()) == (9, 3)
+    pid = CartesianPid(plant, kp=KP, kd=KD, ki=KI)
+    q = np.array([-0.45, 1.66, 0.36])
+    _, J = eq18(q)
+    context = plant.CreateDefaultContext()
+    force = np.array([3.0, -7.0, 0.4])
+    generalized_force = np.full(9, -9.81)  # the box's rows: not the arm's to hold
+    for k, name in enumerate(("joint1", "joint2", "joint3")):
+        joint = plant.GetJointByName(name)
+        joint.set_angle(context, q[k])
+        generalized_force[joint.velocity_start()] = (J.T @ force)[k]
+    integral = pid.holding_integral(plant.GetPositionsAndVelocities(context), generalized_force)
+    np.testing.assert_allclose(integral, force / KI, rtol=1e-12)

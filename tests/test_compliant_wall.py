@@ -10,7 +10,7 @@ from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.tree import MultibodyForces
 from pydrake.systems.framework import DiagramBuilder
 
-from admittance.systems.compliant_wall import CompliantWall
+from admittance.systems.compliant_wall import CompliantWall, CompliantWallLaw
 from admittance.systems.planar_kinematics import PlanarFrameKinematics, PlanarKinematics
 
 Q = np.array([-0.45, 1.66, 0.36])  # an elbow configuration near the paper's task point
@@ -215,3 +215,32 @@ def test_autodiff_wall_does_not_pull_when_out_of_contact(arm_plant):
     force = wall.GetOutputPort("contact_force").Eval(context)[0]
     assert force.value() == 0.0
     np.testing.assert_array_equal(force.derivatives(), 0.0)
+
+
+@pytest.mark.parametrize("velocity", [1.0, -1.0])
+def test_a_wall_at_a_metre_per_second_moves_too(arm_plant, velocity):
+    """Only a wall with zero velocity and no offsets stands still: one at +-1 m/s for 10 ms
+    is at Xe = 0.15 + v t while it moves, 0.15 +- 0.01 m after."""
+    wall = CompliantWall(
+        arm_plant, position=0.15, stiffness=2e4, velocity=velocity, motion_end=0.01
+    )
+    assert wall.position_at(0.004) == pytest.approx(0.15 + 0.004 * velocity, abs=1e-15)
+    assert wall.position_at(1.0) == pytest.approx(0.15 + 0.01 * velocity, abs=1e-15)
+
+
+def test_the_law_alone_gives_the_force_and_its_generalized_force_in_one_vector(arm_plant):
+    """``wall.law`` (``CompliantWallLaw``) outputs [F; -F J_x^T]; it takes its arguments by
+    keyword only, as the wall does (position and stiffness are both numbers)."""
+    tip = _tip_x(arm_plant, Q)
+    wall = CompliantWall(arm_plant, position=tip - 1e-4, stiffness=5e4)
+    law = wall.law
+    context = law.CreateDefaultContext()
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    law.kinematics_input.FixValue(context, kinematics.kinematics(np.r_[Q, 0.0, 0.0, 0.0]))
+    output = law.contact_force_and_generalized_force_output.Eval(context)
+    # F = 5e4 N/m * 1e-4 m (exact to 1e-11 N, as above); J_x from the kinematics.
+    assert output[0] == pytest.approx(5.0, rel=1e-9)
+    np.testing.assert_allclose(output[1:], -5.0 * kinematics.jacobian()[0], rtol=1e-9)
+    arguments = dict(stiffness_steps=(), velocity=0.0, motion_start=0.0, motion_end=math.inf)
+    with pytest.raises(TypeError):
+        CompliantWallLaw(arm_plant, "fingertip", 0.15, 5e4, **arguments, position_offsets=())

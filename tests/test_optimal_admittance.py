@@ -10,7 +10,7 @@ import pytest
 from pydrake.autodiffutils import AutoDiffXd
 from pydrake.systems.analysis import Simulator
 
-from admittance.systems.optimal_admittance import OptimalAdmittance
+from admittance.systems.optimal_admittance import OptimalAdmittance, OptimalAdmittanceLaw
 
 GAMMA, ALPHA, K = 1e-5, 0.1, 2500.0  # the paper's x-axis values (docs/paper-notes.md §4)
 
@@ -96,6 +96,11 @@ def test_arguments_are_keyword_only():
     """Gamma, alpha and K are all numbers: a positional call could swap them unnoticed."""
     with pytest.raises(TypeError):
         OptimalAdmittance(GAMMA, ALPHA, K)
+    # The law inside takes every argument by keyword too (it is public, and built alone
+    # by whoever assembles their own Diagram around it).
+    rest = dict(force_axes=[0], num_axes=3, period=0.0, max_push=1.0, max_retract=1.0)
+    with pytest.raises(TypeError):
+        OptimalAdmittanceLaw(GAMMA, ALPHA, K, **rest, max_force=math.inf, force_bound_gain=4.0)
 
 
 def test_equivalent_pi_gains():
