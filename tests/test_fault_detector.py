@@ -11,6 +11,7 @@ import pytest
 
 from admittance.diagrams.closed_loop import SolvePlanarInverseKinematics
 from admittance.systems.fault_detector import FAULT_FLAGS, SensorFaultDetector
+from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
 PERIOD = 0.005
 NOISE = 0.02
@@ -153,3 +154,220 @@ def test_a_modest_disagreement_beyond_the_tolerance_is_flagged(monitor):
         _sample(monitor, reading)
     flags = [_sample(monitor, r)["implausible"] for r in _noisy(6, seed=4, mean=3.5)]
     assert flags[-1]
+
+
+def test_the_detection_delay_is_the_onset_and_three_samples_of_evidence(monitor):
+    """The stuck and implausible rules flag at the third sample of evidence after the onset
+    sample (the tests above): the longest delay the law must allow for is 4 T = 20 ms. The
+    monitor samples at t = 0, T, 2T, ... (the ADC's clock)."""
+    detector, _ = monitor
+    assert detector.period == PERIOD
+    assert detector.detection_delay == pytest.approx(4 * PERIOD, rel=1e-15)
+    event = detector.GetUniquePeriodicDiscreteUpdateAttribute()
+    assert (event.period_sec(), event.offset_sec()) == (PERIOD, 0.0)
+
+
+@pytest.mark.parametrize(
+    "name, value, message",
+    [
+        ("period", 0.0, "period must be > 0"),
+        ("saturation_force", -0.5, "saturation_force must be > 0"),
+        ("contact_force", math.inf, "contact_force must be > 0"),
+        ("force_tolerance", 0.0, "force_tolerance must be > 0"),
+        ("observer_gain", math.nan, "observer_gain must be > 0"),
+        ("noise_std", -0.5, "noise_std must be >= 0 N"),
+    ],
+)
+def test_bad_arguments_name_the_argument(arm_plant, name, value, message):
+    arguments = dict(
+        period=PERIOD,
+        noise_std=NOISE,
+        saturation_force=FULL_SCALE,
+        contact_force=0.5,
+        force_tolerance=TOLERANCE,
+        observer_gain=100.0,
+    )
+    arguments[name] = value
+    with pytest.raises(ValueError, match=message):
+        SensorFaultDetector(arm_plant, **arguments)
+
+
+def _quiet_moving(arm_plant, tip_velocity, noise_std=0.0):
+    """A monitor that expects no noise (unless given, F_tol = 1 N), with the tip at the test
+    pose moving at `tip_velocity` (x, y, theta rates) and k_hat = 5e4 N/m."""
+    detector = SensorFaultDetector(
+        arm_plant,
+        period=PERIOD,
+        noise_std=noise_std,
+        saturation_force=FULL_SCALE,
+        contact_force=0.5,
+        force_tolerance=1.0,
+        observer_gain=100.0,
+    )
+    context = detector.CreateDefaultContext()
+    q = SolvePlanarInverseKinematics(
+        arm_plant, "fingertip", [0.2, -0.25, math.pi / 2], [-0.45, 1.66, 0.36]
+    )
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics.set_state(np.concatenate([q, np.zeros(3)]))
+    v = np.linalg.solve(kinematics.jacobian(), tip_velocity)
+    detector.estimated_state_input.FixValue(context, np.concatenate([q, v]))
+    detector.stiffness_estimate_input.FixValue(context, [5e4])
+    return detector, context
+
+
+@pytest.mark.parametrize(
+    "tip_velocity, reading, observed, stuck",
+    [
+        # Into the wall at 1 cm/s: k_hat |x'| T = 5e4 * 0.01 * 0.005 = 2.5 N > F_tol per
+        # sample, and the reading does not move: stuck, at the third sample.
+        ([0.01, 0.0, 0.0], 5.0, 5.0, [False, False, True]),
+        # Along the wall (y), or turning: no change of the normal force is predicted.
+        ([0.0, 0.01, 0.0], 5.0, 5.0, [False] * 3),
+        ([0.0, 0.0, 0.5], 5.0, 5.0, [False] * 3),
+        # At 1 mm/s the predicted change, 0.25 N per sample, is within F_tol: plausible.
+        ([0.001, 0.0, 0.0], 5.0, 5.0, [False] * 3),
+        # Out of contact (reading and observer both below F_c = 0.5 N): nothing to see.
+        ([0.01, 0.0, 0.0], 0.0, 0.0, [False] * 3),
+        # In contact when either the reading or the arm's observer is at or above F_c: a
+        # reading stuck at zero while the observer feels 5 N (or exactly F_c) is stuck, and
+        # so is one at 5 N (or exactly F_c) that the observer does not confirm.
+        ([0.01, 0.0, 0.0], 0.0, 5.0, [False, False, True]),
+        ([0.01, 0.0, 0.0], 0.0, 0.5, [False, False, True]),
+        ([0.01, 0.0, 0.0], 5.0, 0.0, [False, False, True]),
+        ([0.01, 0.0, 0.0], 0.5, 0.0, [False, False, True]),
+    ],
+)
+def test_a_constant_reading_is_stuck_when_the_tip_moves_in_contact(
+    arm_plant, tip_velocity, reading, observed, stuck
+):
+    monitor = _quiet_moving(arm_plant, tip_velocity)
+    monitor[0].set_reading(monitor[1], reading)
+    assert [_sample(monitor, reading, observed)["stuck"] for _ in range(3)] == stuck
+
+
+@pytest.mark.parametrize("step", [2.5, 1e-6])
+def test_a_reading_that_follows_the_tip_into_the_wall_is_not_stuck(arm_plant, step):
+    """The tip presses on at 1 cm/s and the reading rises with it (2.5 N per sample), as the
+    observer does: a genuine change, neither stuck nor implausible. With no noise expected,
+    any change above 1e-9 N is a change (1e-6 N per sample here)."""
+    monitor = _quiet_moving(arm_plant, [0.01, 0.0, 0.0])
+    monitor[0].set_reading(monitor[1], 5.0)
+    for k in range(1, 6):
+        assert not any(_sample(monitor, 5.0 + step * k, observed=5.0 + step * k).values())
+
+
+def test_the_plausibility_allowance_is_the_reading_s_rate_and_the_predicted_one(arm_plant):
+    """Tip into the wall at 1 cm/s (k_hat |x'| = 500 N/s), the reading rising 0.2525 N per
+    sample (50.5 N/s), the observer 6.5025 N above it: the allowance F_tol + (50.5 + 500) /
+    K_o = 6.505 N covers the gap by 2.5 mN (far above rounding), so it is plausible."""
+    monitor = _quiet_moving(arm_plant, [0.01, 0.0, 0.0])
+    monitor[0].set_reading(monitor[1], 5.0)
+    for k in range(1, 6):
+        reading = 5.0 + 0.2525 * k
+        assert not _sample(monitor, reading, observed=reading + 6.5025)["implausible"]
+
+
+@pytest.mark.parametrize("noise_std, change", [(NOISE, NOISE / 100.0), (0.0, 1e-9)])
+def test_a_change_of_exactly_the_threshold_is_a_change(arm_plant, noise_std, change):
+    """|r[k] - r[k-1]| < threshold is no change (sigma / 100, or 1e-9 N without noise); a
+    reading that alternates by exactly the threshold (0 and the threshold: exact in
+    floating point) is changing, never stuck, even with the tip moving in contact."""
+    detector, context = _quiet_moving(arm_plant, [0.01, 0.0, 0.0], noise_std)
+    detector.set_reading(context, 0.0)
+    flags = [_sample((detector, context), change * (k % 2), observed=5.0) for k in range(1, 7)]
+    assert not any(f["stuck"] for f in flags)
+
+
+def test_a_change_below_sigma_over_100_counts_as_none(monitor):
+    """The reading flickers by 1.99e-4 N against sigma / 100 = 2e-4 N: stuck, at the third
+    such sample after the onset. A flicker of 2.01e-4 N is a changing reading (each 0.5 %
+    from the threshold, far above rounding)."""
+    for reading in _noisy(5):
+        _sample(monitor, reading)
+    flicker = [_sample(monitor, 4.9 + 1.99e-4 * (k % 2))["stuck"] for k in range(4)]
+    assert flicker == [False, False, False, True]
+    for reading in _noisy(5, seed=2):  # clears
+        _sample(monitor, reading)
+    assert not any(_sample(monitor, 4.9 + 2.01e-4 * (k % 2))["stuck"] for k in range(8))
+
+
+def test_a_broken_or_saturated_sample_neither_counts_nor_breaks_the_evidence(monitor):
+    """Stuck at 4.9 N for two samples of evidence, then a NaN and a saturated sample (no
+    evidence either way: the counts stay), then a third unchanged sample: flagged."""
+    for reading in _noisy(5):
+        _sample(monitor, reading)
+    flags = [_sample(monitor, r) for r in (4.9, 4.9, 4.9, math.nan, 0.99 * FULL_SCALE, 4.9)]
+    assert [f["stuck"] for f in flags] == [False, False, False, False, False, True]
+    assert flags[3]["nonfinite"] and flags[4]["saturated"]
+
+
+def test_a_monitor_started_without_a_reading_trusts_its_first_finite_sample(arm_plant):
+    """No set_reading: the first finite sample is the previous and the held reading. Before
+    it, a NaN reading passes on a finite force (nothing has been trusted yet: 0 N)."""
+    detector = SensorFaultDetector(
+        arm_plant,
+        period=PERIOD,
+        noise_std=NOISE,
+        saturation_force=FULL_SCALE,
+        contact_force=0.5,
+        force_tolerance=TOLERANCE,
+        observer_gain=100.0,
+    )
+    context = detector.CreateDefaultContext()
+    q = SolvePlanarInverseKinematics(
+        arm_plant, "fingertip", [0.2, -0.25, math.pi / 2], [-0.45, 1.66, 0.36]
+    )
+    detector.estimated_state_input.FixValue(context, np.concatenate([q, np.zeros(3)]))
+    detector.stiffness_estimate_input.FixValue(context, [5e4])
+    monitor = (detector, context)
+    assert _sample(monitor, math.nan)["nonfinite"]
+    assert _trusted(monitor) == 0.0
+    assert not any(_sample(monitor, 5.0).values())
+    assert _sample(monitor, math.nan)["nonfinite"]
+    assert _trusted(monitor) == 5.0  # the first finite sample, held
+    # From there on the rules run: stuck at 4.9 N after the onset and three samples.
+    assert [_sample(monitor, 4.9)["stuck"] for _ in range(4)] == [False, False, False, True]
+
+
+def test_set_reading_is_the_held_value_and_a_frozen_monitor_passes_the_reading_on(
+    arm_plant, monitor
+):
+    detector, context = monitor
+    detector.set_reading(context, 4.2)
+    detector.measured_force_input.FixValue(context, [math.nan])
+    assert _trusted(monitor) == 4.2
+    frozen = SensorFaultDetector(
+        arm_plant,
+        period=PERIOD,
+        noise_std=NOISE,
+        saturation_force=FULL_SCALE,
+        contact_force=0.5,
+        force_tolerance=TOLERANCE,
+        observer_gain=100.0,
+        frozen=True,
+    )
+    frozen_context = frozen.CreateDefaultContext()
+    assert frozen_context.num_discrete_state_groups() == 0
+    frozen.set_reading(frozen_context, 4.2)  # nothing to set
+    frozen.measured_force_input.FixValue(frozen_context, [3.0])
+    assert frozen.trusted_force_output.Eval(frozen_context)[0] == 3.0
+    assert not any(frozen.fault_flags_output.Eval(frozen_context))
+    assert frozen.sensor_fault_output.Eval(frozen_context)[0] == 0.0
+
+
+@pytest.mark.parametrize("kind", ["stuck", "implausible"])
+def test_the_held_value_stays_the_pre_fault_reading_until_the_flag_clears(monitor, kind):
+    """Stuck at 4.9 N, or implausible at 2 N against the observer's 5 N (as above), then
+    good readings again: for the three samples before the flag clears, the trusted force is
+    still the reading of the sample before the onset, exactly."""
+    before = _noisy(5)
+    for reading in before:
+        _sample(monitor, reading)
+    fault = [4.9] * 5 if kind == "stuck" else _noisy(5, seed=3, mean=2.0)
+    assert [_sample(monitor, r)[kind] for r in fault][-1]
+    for reading in _noisy(3, seed=5):
+        assert _sample(monitor, reading)[kind]
+        assert _trusted(monitor) == before[-1]
+    assert not _sample(monitor, 5.0)[kind]
+    assert _trusted(monitor) == 5.0

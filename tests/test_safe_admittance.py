@@ -31,9 +31,8 @@ TOTAL_DAMPING = 0.5 * math.sqrt(MASS * (KP + 1e6))
 ADVANCE = 5.0 / (2500.0 * 0.12 * (1.0 + math.exp(-0.25 * math.pi / math.sqrt(0.9375))))
 
 
-def _law(plant):
-    return SafeAdmittance(
-        plant,
+def _law(plant, **overrides):
+    arguments = dict(
         gamma=GAMMA,
         alpha=ALPHA,
         stiffness=KP,
@@ -50,6 +49,8 @@ def _law(plant):
         contact_force=0.5,
         detection_delay=0.02,
     )
+    arguments.update(overrides)
+    return SafeAdmittance(plant, **arguments)
 
 
 @pytest.fixture
@@ -242,3 +243,101 @@ def test_every_system_of_the_layer_converts_to_autodiff(arm_plant):
     kinematics.set_state(np.concatenate([q, np.zeros(3)]))
     c = TOTAL_DAMPING - KD
     assert gradient[3:] == pytest.approx(-c / KP * kinematics.jacobian()[0], rel=1e-3)
+
+
+def test_a_fresh_law_starts_at_no_offset_and_the_full_gain_and_outputs_its_scale(law):
+    system, context, _ = law
+    assert list(system.CreateDefaultContext().get_continuous_state_vector().CopyToVector()) == [
+        0.0,
+        1.0,
+    ]
+    _evaluate(law, FR - 0.2, scale=0.5)
+    assert system.gain_scale_output.Eval(context)[0] == 0.5
+    # Xr moves the normal axis only.
+    assert list(system.reference_offset_output.Eval(context)[1:]) == [0.0, 0.0]
+
+
+def test_a_reference_above_fmax_may_not_advance_at_all(law):
+    """v_adv = max(Fmax - Fr, 0) / (...): with Fr = 12 N above Fmax = 10 N, zero."""
+    system, context, _ = law
+    system.desired_force_input.FixValue(context, [12.0])
+    assert system.numbers(context)["advance_speed"] == 0.0
+
+
+def test_contact_starts_at_f_c_and_free_motion_is_not_sped_up(law):
+    """F = F_c = 0.5 N is contact (no approach limit). Below it, with Fr = 0.6 N, the law's
+    own rate Gamma K E = 0.025 * 0.2 = 5 mm/s is below v_max = 9.27 mm/s: it is kept."""
+    system, context, _ = law
+    system.measured_force_input.FixValue(context, [0.5])
+    assert system.numbers(context)["in_contact"]
+    _, y_rate, _ = _evaluate(law, 0.4, desired_force=[0.6])
+    assert y_rate == pytest.approx(0.025 * 0.2, rel=1e-12)
+
+
+def test_the_force_bound_penalty_grows_with_the_excess_over_the_guard(law):
+    """F = 16 N, guard Fg = (5 + 10) / 2 = 7.5 N: E_b = (5 - 16) - 4 (16 - 7.5) = -45 N, so
+    dy/dt = 0.025 (-45) = -1.125 m/s and Xr = y + 0.025 * 0.1 * (-45) = 0.05 - 0.1125 m."""
+    offset, y_rate, _ = _evaluate(law, 16.0, y=0.05)
+    assert y_rate == pytest.approx(-1.125, rel=1e-12)
+    assert offset == pytest.approx(0.05 - 0.1125, rel=1e-12)
+
+
+def test_the_offset_stays_above_its_retract_bound_with_back_calculation(law):
+    """y = -0.2 m: Xr = y + 0.025 * 0.1 * 0.2 = -0.1995 m is past -max_retract = -0.1 m:
+    Xr = -0.1 m and dy/dt gains (-0.1 - (-0.1995)) / 0.01 s."""
+    offset, y_rate, _ = _evaluate(law, FR - 0.2, y=-0.2)
+    assert offset == pytest.approx(-0.1, rel=1e-12)
+    unclamped = -0.2 + 0.025 * ALPHA * 0.2
+    assert y_rate == pytest.approx(0.025 * 0.2 + (-0.1 - unclamped) / 0.01, rel=1e-12)
+
+
+@pytest.mark.parametrize("desired_x", [POSE[0] - 0.05, POSE[0] + 0.15])
+def test_a_run_cannot_start_with_the_tip_beyond_the_travel(law, desired_x):
+    """The tip at x = 0.2 m and Xd 5 cm behind it (past max_push = 1 cm) or 15 cm ahead of
+    it (past max_retract = 10 cm): the reference could not start at the tip."""
+    system, context, _ = law
+    system.desired_position_input.FixValue(context, [desired_x, POSE[1], POSE[2]])
+    with pytest.raises(ValueError, match="outside"):
+        system.start_at_tip(context)
+
+
+@pytest.mark.parametrize("side", ["push", "retract"])
+def test_a_run_may_start_with_the_tip_exactly_at_a_travel_bound(arm_plant, law, side):
+    """A law whose bound is exactly the tip's offset from Xd (tip - Xd, exact in floating
+    point: Xd within a factor 2 of the tip's x) starts there."""
+    _, context, q = law
+    tip = PlanarFrameKinematics(arm_plant, "fingertip")
+    tip.set_state(np.concatenate([q, np.zeros(3)]))
+    x = tip.pose()[0]
+    desired = x - 0.01 if side == "push" else x + 0.05
+    bounds = dict(max_push=x - desired) if side == "push" else dict(max_retract=desired - x)
+    system = _law(arm_plant, **bounds)
+    context = system.CreateDefaultContext()
+    system.estimated_state_input.FixValue(context, np.concatenate([q, np.zeros(3)]))
+    system.desired_force_input.FixValue(context, [FR])
+    system.desired_position_input.FixValue(context, [desired, POSE[1], POSE[2]])
+    system.desired_velocity_input.FixValue(context, [0.0, 0.0, 0.0])
+    system.stiffness_estimate_input.FixValue(context, [5e4])
+    system.sensor_fault_input.FixValue(context, [0.0])
+    system.measured_force_input.FixValue(context, [0.0])
+    system.start_at_tip(context)
+    assert desired + system.reference_offset_output.Eval(context)[0] == pytest.approx(x)
+
+
+@pytest.mark.parametrize(
+    "name, value, message",
+    [
+        ("gamma", 0.0, "gamma must be finite and > 0"),
+        ("max_force", -2.0, "max_force must be finite and > 0"),
+        ("stiffness", math.inf, "stiffness must be finite and > 0"),
+        ("alpha", -0.5, "alpha must be finite and >= 0"),
+        ("pid_kd", math.inf, "pid_kd must be finite and >= 0"),
+    ],
+)
+def test_bad_arguments_name_the_argument(arm_plant, name, value, message):
+    with pytest.raises(ValueError, match=message):
+        _law(arm_plant, **{name: value})
+
+
+def test_an_undamped_pid_an_ideal_sensor_and_no_alpha_are_accepted(arm_plant):
+    _law(arm_plant, alpha=0.0, pid_kd=0.0, filter_time_constant=0.0)

@@ -142,3 +142,67 @@ def test_apparent_mass_of_the_arm_at_the_paper_s_pose(arm_plant):
     kinematics.set_state(np.concatenate([q, np.zeros(3)]))
     mass = model.apparent_mass(arm_plant.CalcMassMatrix(context), kinematics.jacobian()[0])
     assert mass == pytest.approx(0.9217, abs=5e-4)
+
+
+@pytest.mark.parametrize("ratio", [0.25, 0.3, 0.6])
+def test_bounce_minimum_matches_the_integrated_ode(ratio):
+    """x_min of the closed form against the RK4 of the impact (m 1 kg, Kp 2500, Ke 1e5,
+    1 cm/s) above zeta* (below it the tip leaves the unilateral wall, which the closed form's
+    linear spring does not: the sign test above covers that side). Measured agreement 1.4e-9
+    of the peak; 1e-6 of it leaves room for the RK4's step error."""
+    mass, kp, stiffness, speed = 1.0, 2500.0, 1e5, 0.01
+    kd = ratio * 2.0 * math.sqrt(mass * (kp + stiffness))
+    peak, minimum = _integrate_impact(speed, mass, kp, kd, stiffness, duration=0.1)
+    assert model.bounce_minimum(speed, mass, kp, kd, stiffness) == pytest.approx(
+        minimum, abs=1e-6 * peak
+    )
+
+
+@pytest.mark.parametrize("kd", [40.0, 80.0])
+def test_without_oscillation_the_tip_stays_at_the_pre_load_s_depth(kd):
+    """zeta >= 1 (m 1 kg, Kp + Ke = 100 + 300 N/m: zeta = Kd / 40, 1 and 2 here): the tip
+    creeps to L = Kd v / (Kp + Ke) without overshoot, so the peak force is Ke L and the
+    first minimum is L itself (no bounce)."""
+    mass, kp, stiffness, speed = 1.0, 100.0, 300.0, 0.01
+    depth = kd * speed / (kp + stiffness)
+    assert model.impact_peak_force(speed, mass, kp, kd, stiffness) == pytest.approx(
+        stiffness * depth, rel=1e-12
+    )
+    assert model.bounce_minimum(speed, mass, kp, kd, stiffness) == pytest.approx(depth, rel=1e-12)
+
+
+def test_a_damped_enough_pid_needs_no_injected_damping():
+    """Kd = 1000 N s/m already exceeds 2 (0.25) sqrt(0.84 (1200 + 1e6)) = 458.6: c = 0."""
+    assert model.injected_damping(0.84, 1200.0, 1000.0, 1e6, 0.25) == 0.0
+
+
+@pytest.mark.parametrize(
+    "ratio, overshoot", [(0.5, math.exp(-0.5 * math.pi / math.sqrt(0.75))), (1.0, 0.0), (1.5, 0.0)]
+)
+def test_step_overshoot_by_hand(ratio, overshoot):
+    assert model.step_overshoot(ratio) == pytest.approx(overshoot, rel=1e-12)
+
+
+def test_critical_loop_gain_with_a_filter_and_alpha_against_the_roots():
+    """m = 1, Kp = 1, Kd = 2, Ke = 2, tau = 0.1, alpha = 0.2: the largest g for which every
+    root of m tau s^4 + (m + Kd tau) s^3 + (Kd + Kt tau) s^2 + (Kt + alpha g) s + g has a
+    negative real part, bisected on numpy's roots (7.1202, to 1e-9 of the bracket)."""
+    coefficients = [0.1, 1.2, 2.3, 3.0, 0.0]
+
+    def stable(gain):
+        polynomial = np.array(coefficients) + [0.0, 0.0, 0.0, 0.2 * gain, gain]
+        return np.roots(polynomial).real.max() < 0
+
+    low, high = 1e-3, 1e3
+    for _ in range(100):
+        middle = math.sqrt(low * high)
+        low, high = (middle, high) if stable(middle) else (low, middle)
+    assert model.critical_loop_gain(1.0, 1.0, 2.0, 2.0, 0.2, 0.1) == pytest.approx(low, rel=1e-9)
+
+
+@pytest.mark.parametrize("alpha", [0.5, 0.75])
+def test_an_ideal_sensor_with_kd_alpha_at_or_above_m_has_no_limit(alpha):
+    """tau = 0: m s^3 + Kd s^2 + (Kt + alpha g) s + g, Routh: Kd (Kt + alpha g) > m g, i.e.
+    Kd Kt + g (Kd alpha - m) > 0 for every g once Kd alpha >= m (m = 1, Kd = 2: alpha =
+    0.5 exactly at the edge, 0.75 above it)."""
+    assert math.isinf(model.critical_loop_gain(1.0, 1.0, 2.0, 2.0, alpha, 0.0))

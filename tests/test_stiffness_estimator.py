@@ -156,3 +156,124 @@ def test_the_frozen_estimator_has_no_state(arm_plant):
     context = frozen.CreateDefaultContext()
     assert context.num_total_states() == 0
     assert frozen.stiffness_estimate_output.Eval(context)[0] == 3e4
+
+
+def _update(log_estimate, anchor, position, force, time):
+    return update_estimate(
+        log_estimate,
+        anchor,
+        position,
+        force,
+        time,
+        contact_force=CONTACT,
+        informative_force=INFORMATIVE,
+    )
+
+
+def test_contact_starts_at_f_c_and_a_change_of_exactly_df_min_is_informative():
+    """F >= F_c is contact (the first such sample anchors); |F - F_a| >= dF_min is taken:
+    from the anchor (0.2 m, 1 N), 2 N at 0.2 + 1 / 2e4 m gives the secant 2e4 N/m, which
+    lowers the prior by 3/4 of the way in log scale."""
+    _, anchor = _update(math.log(PRIOR), None, 0.2, CONTACT, 0.0)
+    assert anchor == (0.2, CONTACT, 0.0)
+    log_estimate, anchor = _update(math.log(PRIOR), (0.2, 1.0, 0.0), 0.2 + 1.0 / 2e4, 2.0, 0.1)
+    expected = math.log(PRIOR) + GAIN_DOWN * (math.log(2e4) - math.log(PRIOR))
+    assert log_estimate == pytest.approx(expected, rel=1e-9)  # the secant to 1e-12
+    assert anchor == (0.2 + 1.0 / 2e4, 2.0, 0.0)
+
+
+def test_unloading_gives_the_same_secant():
+    """From (0.2010 m, 10 N) to (0.2005 m, 5 N): both fall, the secant is 5 / 5e-4 = 1e4."""
+    log_estimate, _ = _update(math.log(5e4), (0.2010, 10.0, 0.0), 0.2005, 5.0, 0.1)
+    expected = math.log(5e4) + GAIN_DOWN * (math.log(1e4) - math.log(5e4))
+    assert log_estimate == pytest.approx(expected, rel=1e-9)  # 0.2010 - 0.2005 to 1e-13
+
+
+@pytest.mark.parametrize("position", [0.2, 0.199])
+def test_a_force_rise_without_the_tip_going_deeper_is_no_spring(position):
+    """5 to 8 N with the tip still (a stiffness jump at fixed penetration) or backing off
+    1 mm: no secant; the sample becomes the anchor."""
+    log_estimate, anchor = _update(math.log(5e4), (0.2, 5.0, 0.0), position, 8.0, 0.1)
+    assert log_estimate == math.log(5e4)
+    assert anchor == (position, 8.0, 0.0)
+
+
+@pytest.mark.parametrize("stiffness", [1.5, 1.5e6])
+def test_the_rise_is_limited_to_a_doubling_at_any_scale(stiffness):
+    """A secant three times k_hat raises ln k_hat by ln 2 exactly, whatever the scale (the
+    update is on ln k: 1.5 N/m and 1.5e6 N/m alike)."""
+    log_estimate, _ = _update(math.log(stiffness), (0.0, 1.0, 0.0), 1.0 / stiffness, 4.0, 0.1)
+    assert log_estimate == pytest.approx(math.log(2 * stiffness), rel=1e-12)
+
+
+@pytest.mark.parametrize("time, falls", [(2.1, True), (2.5, True), (2.6, False)])
+def test_the_loading_time_counts_from_the_contact_s_onset(time, falls):
+    """The receding wall of the test above, in a contact that began at t = 2 s: the
+    estimate may fall until t = 2.5 s (inclusive), not after."""
+    log_estimate, _ = _update(math.log(1e5), (0.15, 5.0, 2.0), 0.17, 7.0, time)
+    fallen = math.log(1e5) + GAIN_DOWN * math.log(1e-3)
+    assert log_estimate == pytest.approx(fallen if falls else math.log(1e5))
+
+
+def _estimator(arm_plant):
+    estimator = StiffnessEstimator(
+        arm_plant,
+        period=0.005,
+        prior_stiffness=PRIOR,
+        contact_force=CONTACT,
+        informative_force=INFORMATIVE,
+    )
+    context = estimator.CreateDefaultContext()
+    estimator.sensor_fault_input.FixValue(context, [0.0])
+    return estimator, context
+
+
+def _sample(arm_plant, estimator, context, force, seed, fault=0.0):
+    """One sample with the tip on the wall at 0.2 m, Ke = 5e4: x = 0.2 + F / 5e4."""
+    seed = SolvePlanarInverseKinematics(
+        arm_plant, "fingertip", [WALL + force / 5e4, -0.25, math.pi / 2], seed
+    )
+    estimator.estimated_state_input.FixValue(context, np.concatenate([seed, np.zeros(3)]))
+    estimator.measured_force_input.FixValue(context, [force])
+    estimator.sensor_fault_input.FixValue(context, [fault])
+    update = estimator.EvalUniquePeriodicDiscreteUpdate(context)
+    context.get_mutable_discrete_state().SetFrom(update)
+    return seed
+
+
+def test_a_contact_late_in_a_run_is_still_a_loading(arm_plant):
+    """The samples of the system test above, from t = 2 s: the onset is the contact's own
+    time, so the estimate falls as it did from t = 0."""
+    estimator, context = _estimator(arm_plant)
+    seed = [-0.45, 1.66, 0.36]
+    for k, force in enumerate((0.6, 1.7, 2.8, 3.9, 5.0)):
+        context.SetTime(2.0 + 0.005 * k)
+        seed = _sample(arm_plant, estimator, context, force, seed)
+    assert estimator.stiffness_estimate_output.Eval(context)[0] == pytest.approx(
+        5e4 * math.exp(math.log(20) / 256), rel=1e-4
+    )
+
+
+def test_a_set_estimate_or_a_flagged_reading_leaves_no_anchor(arm_plant):
+    """After set_estimate the first sample in contact only anchors; a flagged reading
+    neither updates nor keeps the anchor, so the next trusted sample anchors again."""
+    estimator, context = _estimator(arm_plant)
+    assert (estimator.prior_stiffness, estimator.contact_force) == (PRIOR, CONTACT)
+    event = estimator.GetUniquePeriodicDiscreteUpdateAttribute()
+    assert (event.period_sec(), event.offset_sec()) == (0.005, 0.0)
+    estimator.set_estimate(context, 1e5)
+    seed = _sample(arm_plant, estimator, context, 3.0, [-0.45, 1.66, 0.36])
+    seed = _sample(arm_plant, estimator, context, 5.0, seed, fault=1.0)
+    seed = _sample(arm_plant, estimator, context, 7.0, seed)
+    assert estimator.stiffness_estimate_output.Eval(context)[0] == pytest.approx(1e5, rel=1e-12)
+
+
+@pytest.mark.parametrize("name", ["period", "prior_stiffness", "contact_force"])
+@pytest.mark.parametrize("value", [0.0, -1.0, math.inf])
+def test_bad_arguments_name_the_argument(arm_plant, name, value):
+    arguments = dict(
+        period=0.005, prior_stiffness=PRIOR, contact_force=CONTACT, informative_force=1.0
+    )
+    arguments[name] = value
+    with pytest.raises(ValueError, match=f"{name} must be > 0"):
+        StiffnessEstimator(arm_plant, **arguments)
