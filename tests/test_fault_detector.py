@@ -19,10 +19,9 @@ FULL_SCALE = 111.03
 TOLERANCE = 1.0 + 6 * NOISE  # 0.2 Fr + 6 sigma, as the layer sets it for Fr = 5 N
 
 
-@pytest.fixture
-def monitor(arm_plant):
-    detector = SensorFaultDetector(
-        arm_plant,
+def _detector(arm_plant, **overrides):
+    """The monitor of these tests: T = 5 ms, sigma = 0.02 N, F_c = 0.5 N, K_o = 100 1/s."""
+    arguments = dict(
         period=PERIOD,
         noise_std=NOISE,
         saturation_force=FULL_SCALE,
@@ -30,12 +29,29 @@ def monitor(arm_plant):
         force_tolerance=TOLERANCE,
         observer_gain=100.0,
     )
+    arguments.update(overrides)
+    return SensorFaultDetector(arm_plant, **arguments)
+
+
+def _at_the_pose(arm_plant, detector, tip_velocity=(0.0, 0.0, 0.0)):
+    """A context of `detector` with the tip at (0.2, -0.25, pi/2) moving at `tip_velocity`
+    (x, y, theta rates) and k_hat = 5e4 N/m."""
     context = detector.CreateDefaultContext()
     q = SolvePlanarInverseKinematics(
         arm_plant, "fingertip", [0.2, -0.25, math.pi / 2], [-0.45, 1.66, 0.36]
     )
-    detector.estimated_state_input.FixValue(context, np.concatenate([q, np.zeros(3)]))  # at rest
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics.set_state(np.concatenate([q, np.zeros(3)]))
+    v = np.linalg.solve(kinematics.jacobian(), tip_velocity)
+    detector.estimated_state_input.FixValue(context, np.concatenate([q, v]))
     detector.stiffness_estimate_input.FixValue(context, [5e4])
+    return context
+
+
+@pytest.fixture
+def monitor(arm_plant):
+    detector = _detector(arm_plant)
+    context = _at_the_pose(arm_plant, detector)  # at rest
     detector.observed_force_input.FixValue(context, [5.0])
     detector.measured_force_input.FixValue(context, [5.0])
     detector.set_reading(context, 5.0)
@@ -107,15 +123,7 @@ def test_a_constant_reading_is_not_stuck_when_no_noise_is_expected_and_the_arm_i
     arm_plant, monitor
 ):
     detector, context = monitor
-    quiet = SensorFaultDetector(
-        arm_plant,
-        period=PERIOD,
-        noise_std=0.0,
-        saturation_force=FULL_SCALE,
-        contact_force=0.5,
-        force_tolerance=1.0,
-        observer_gain=100.0,
-    )
+    quiet = _detector(arm_plant, noise_std=0.0, force_tolerance=1.0)
     quiet_context = quiet.CreateDefaultContext()
     for port in ("estimated_state", "stiffness_estimate", "observed_force"):
         quiet.GetInputPort(port).FixValue(quiet_context, detector.GetInputPort(port).Eval(context))
@@ -179,41 +187,15 @@ def test_the_detection_delay_is_the_onset_and_three_samples_of_evidence(monitor)
     ],
 )
 def test_bad_arguments_name_the_argument(arm_plant, name, value, message):
-    arguments = dict(
-        period=PERIOD,
-        noise_std=NOISE,
-        saturation_force=FULL_SCALE,
-        contact_force=0.5,
-        force_tolerance=TOLERANCE,
-        observer_gain=100.0,
-    )
-    arguments[name] = value
     with pytest.raises(ValueError, match=message):
-        SensorFaultDetector(arm_plant, **arguments)
+        _detector(arm_plant, **{name: value})
 
 
 def _quiet_moving(arm_plant, tip_velocity, noise_std=0.0):
     """A monitor that expects no noise (unless given, F_tol = 1 N), with the tip at the test
     pose moving at `tip_velocity` (x, y, theta rates) and k_hat = 5e4 N/m."""
-    detector = SensorFaultDetector(
-        arm_plant,
-        period=PERIOD,
-        noise_std=noise_std,
-        saturation_force=FULL_SCALE,
-        contact_force=0.5,
-        force_tolerance=1.0,
-        observer_gain=100.0,
-    )
-    context = detector.CreateDefaultContext()
-    q = SolvePlanarInverseKinematics(
-        arm_plant, "fingertip", [0.2, -0.25, math.pi / 2], [-0.45, 1.66, 0.36]
-    )
-    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
-    kinematics.set_state(np.concatenate([q, np.zeros(3)]))
-    v = np.linalg.solve(kinematics.jacobian(), tip_velocity)
-    detector.estimated_state_input.FixValue(context, np.concatenate([q, v]))
-    detector.stiffness_estimate_input.FixValue(context, [5e4])
-    return detector, context
+    detector = _detector(arm_plant, noise_std=noise_std, force_tolerance=1.0)
+    return detector, _at_the_pose(arm_plant, detector, tip_velocity)
 
 
 @pytest.mark.parametrize(
@@ -305,22 +287,8 @@ def test_a_broken_or_saturated_sample_neither_counts_nor_breaks_the_evidence(mon
 def test_a_monitor_started_without_a_reading_trusts_its_first_finite_sample(arm_plant):
     """No set_reading: the first finite sample is the previous and the held reading. Before
     it, a NaN reading passes on a finite force (nothing has been trusted yet: 0 N)."""
-    detector = SensorFaultDetector(
-        arm_plant,
-        period=PERIOD,
-        noise_std=NOISE,
-        saturation_force=FULL_SCALE,
-        contact_force=0.5,
-        force_tolerance=TOLERANCE,
-        observer_gain=100.0,
-    )
-    context = detector.CreateDefaultContext()
-    q = SolvePlanarInverseKinematics(
-        arm_plant, "fingertip", [0.2, -0.25, math.pi / 2], [-0.45, 1.66, 0.36]
-    )
-    detector.estimated_state_input.FixValue(context, np.concatenate([q, np.zeros(3)]))
-    detector.stiffness_estimate_input.FixValue(context, [5e4])
-    monitor = (detector, context)
+    detector = _detector(arm_plant)
+    monitor = (detector, _at_the_pose(arm_plant, detector))
     assert _sample(monitor, math.nan)["nonfinite"]
     assert _trusted(monitor) == 0.0
     assert not any(_sample(monitor, 5.0).values())
@@ -337,16 +305,7 @@ def test_set_reading_is_the_held_value_and_a_frozen_monitor_passes_the_reading_o
     detector.set_reading(context, 4.2)
     detector.measured_force_input.FixValue(context, [math.nan])
     assert _trusted(monitor) == 4.2
-    frozen = SensorFaultDetector(
-        arm_plant,
-        period=PERIOD,
-        noise_std=NOISE,
-        saturation_force=FULL_SCALE,
-        contact_force=0.5,
-        force_tolerance=TOLERANCE,
-        observer_gain=100.0,
-        frozen=True,
-    )
+    frozen = _detector(arm_plant, frozen=True)
     frozen_context = frozen.CreateDefaultContext()
     assert frozen_context.num_discrete_state_groups() == 0
     frozen.set_reading(frozen_context, 4.2)  # nothing to set

@@ -117,8 +117,7 @@ def test_free_motion_and_untrusted_readings_drop_the_anchor():
         assert anchor is None and log_estimate == math.log(5e4)
 
 
-def test_the_system_samples_the_tip_from_the_plant(arm_plant):
-    """The block reads x from the plant's state: tip poses on a wall at 0.2 m, Ke = 5e4."""
+def _estimator(arm_plant):
     estimator = StiffnessEstimator(
         arm_plant,
         period=0.005,
@@ -128,16 +127,29 @@ def test_the_system_samples_the_tip_from_the_plant(arm_plant):
     )
     context = estimator.CreateDefaultContext()
     estimator.sensor_fault_input.FixValue(context, [0.0])
+    return estimator, context
+
+
+def _sample(arm_plant, estimator, context, force, seed, fault=0.0):
+    """One sample with the tip on the wall at 0.2 m, Ke = 5e4: x = 0.2 + F / 5e4."""
+    seed = SolvePlanarInverseKinematics(
+        arm_plant, "fingertip", [WALL + force / 5e4, -0.25, math.pi / 2], seed
+    )
+    estimator.estimated_state_input.FixValue(context, np.concatenate([seed, np.zeros(3)]))
+    estimator.measured_force_input.FixValue(context, [force])
+    estimator.sensor_fault_input.FixValue(context, [fault])
+    update = estimator.EvalUniquePeriodicDiscreteUpdate(context)
+    context.get_mutable_discrete_state().SetFrom(update)
+    return seed
+
+
+def test_the_system_samples_the_tip_from_the_plant(arm_plant):
+    """The block reads x from the plant's state: tip poses on a wall at 0.2 m, Ke = 5e4."""
+    estimator, context = _estimator(arm_plant)
     assert estimator.stiffness_estimate_output.Eval(context)[0] == pytest.approx(PRIOR)
     seed = [-0.45, 1.66, 0.36]
     for force in (0.6, 1.7, 2.8, 3.9, 5.0):
-        seed = SolvePlanarInverseKinematics(
-            arm_plant, "fingertip", [WALL + force / 5e4, -0.25, math.pi / 2], seed
-        )
-        estimator.estimated_state_input.FixValue(context, np.concatenate([seed, np.zeros(3)]))
-        estimator.measured_force_input.FixValue(context, [force])
-        update = estimator.EvalUniquePeriodicDiscreteUpdate(context)
-        context.get_mutable_discrete_state().SetFrom(update)
+        seed = _sample(arm_plant, estimator, context, force, seed)
     # Four secants of 5e4 (to the IK's 1e-10 m): ln(20) / 256 from the wall.
     assert estimator.stiffness_estimate_output.Eval(context)[0] == pytest.approx(
         5e4 * math.exp(math.log(20) / 256), rel=1e-4
@@ -213,32 +225,6 @@ def test_the_loading_time_counts_from_the_contact_s_onset(time, falls):
     log_estimate, _ = _update(math.log(1e5), (0.15, 5.0, 2.0), 0.17, 7.0, time)
     fallen = math.log(1e5) + GAIN_DOWN * math.log(1e-3)
     assert log_estimate == pytest.approx(fallen if falls else math.log(1e5))
-
-
-def _estimator(arm_plant):
-    estimator = StiffnessEstimator(
-        arm_plant,
-        period=0.005,
-        prior_stiffness=PRIOR,
-        contact_force=CONTACT,
-        informative_force=INFORMATIVE,
-    )
-    context = estimator.CreateDefaultContext()
-    estimator.sensor_fault_input.FixValue(context, [0.0])
-    return estimator, context
-
-
-def _sample(arm_plant, estimator, context, force, seed, fault=0.0):
-    """One sample with the tip on the wall at 0.2 m, Ke = 5e4: x = 0.2 + F / 5e4."""
-    seed = SolvePlanarInverseKinematics(
-        arm_plant, "fingertip", [WALL + force / 5e4, -0.25, math.pi / 2], seed
-    )
-    estimator.estimated_state_input.FixValue(context, np.concatenate([seed, np.zeros(3)]))
-    estimator.measured_force_input.FixValue(context, [force])
-    estimator.sensor_fault_input.FixValue(context, [fault])
-    update = estimator.EvalUniquePeriodicDiscreteUpdate(context)
-    context.get_mutable_discrete_state().SetFrom(update)
-    return seed
 
 
 def test_a_contact_late_in_a_run_is_still_a_loading(arm_plant):
