@@ -158,12 +158,12 @@ def test_bounce_minimum_matches_the_integrated_ode(ratio):
     )
 
 
-@pytest.mark.parametrize("kd", [40.0, 80.0])
-def test_without_oscillation_the_tip_stays_at_the_pre_load_s_depth(kd):
-    """zeta >= 1 (m 1 kg, Kp + Ke = 100 + 300 N/m: zeta = Kd / 40, 1 and 2 here): the tip
-    creeps to L = Kd v / (Kp + Ke) without overshoot, so the peak force is Ke L and the
-    first minimum is L itself (no bounce)."""
-    mass, kp, stiffness, speed = 1.0, 100.0, 300.0, 0.01
+@pytest.mark.parametrize("mass, kd", [(1.0, 40.0), (1.0, 80.0), (0.3, 80.0)])
+def test_without_oscillation_the_tip_stays_at_the_pre_load_s_depth(mass, kd):
+    """zeta >= 1 (Kp + Ke = 100 + 300 N/m, zeta = Kd / (2 sqrt(400 m)): exactly 1, 2 and
+    3.65 here): the tip creeps to L = Kd v / (Kp + Ke) without overshoot, whatever m, so the
+    peak force is Ke L and the first minimum is L itself (no bounce)."""
+    kp, stiffness, speed = 100.0, 300.0, 0.01
     depth = kd * speed / (kp + stiffness)
     assert model.impact_peak_force(speed, mass, kp, kd, stiffness) == pytest.approx(
         stiffness * depth, rel=1e-12
