@@ -26,6 +26,7 @@ from admittance.systems.planar_kinematics import (
     PlanarKinematics,
     generate_planar_kinematics,
     split_kinematics,
+    wrap_angle,
 )
 
 LENGTHS = (0.20, 0.20, 0.10)
@@ -185,3 +186,45 @@ def test_expression_code_refuses_what_it_cannot_write():
         compile_expressions([if_then_else(Expression(x) > 0.0, Expression(x), 0.0)], [x])
     with pytest.raises(ValueError, match="'y'"):
         compile_expressions([Expression(x) + Expression(y)], [x])
+
+
+def test_wrap_angle_keeps_an_angle_within_pi_exactly_and_wraps_the_rest():
+    """The IEEE remainder by 2 pi: an angle in [-pi, pi] comes back bit for bit (atan2 of
+    its sine and cosine would not: -0.9331 comes back one unit in the last place off)."""
+    assert wrap_angle(-0.9331) == -0.9331
+    assert wrap_angle(1.5 * math.pi) == pytest.approx(-0.5 * math.pi, abs=1e-15)
+    assert wrap_angle(-3.5) == pytest.approx(2.0 * math.pi - 3.5, abs=1e-15)
+    assert wrap_angle(AutoDiffXd(1.5 * math.pi)).value() == pytest.approx(-0.5 * math.pi)
+
+
+def test_task_vectors_of_other_coordinates_and_their_jacobian_rows(arm_plant):
+    """(x, y), (theta, x), (y, x) and (x, z) of the fingertip are the entries of the arm's
+    (x, y, theta) in that order; z is 0 and its Jacobian row is zero (the arm moves in the
+    x-y plane). A name built at run time (not an interned literal) counts as well."""
+    q = np.array([-0.45, 1.66, 0.36])
+    planar = PlanarFrameKinematics(arm_plant, "fingertip")
+    planar.set_state(np.concatenate([q, np.zeros(3)]))
+    pose, jacobian = planar.pose(), planar.jacobian()
+    theta = "".join(["the", "ta"])
+    for coordinates, rows in (
+        (("x", "y"), [0, 1]),
+        ((theta, "x"), [2, 0]),
+        (("y", "x"), [1, 0]),
+    ):
+        kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=coordinates)
+        kinematics.set_state(np.concatenate([q, np.zeros(3)]))
+        np.testing.assert_array_equal(kinematics.pose(), pose[rows])
+        np.testing.assert_array_equal(kinematics.jacobian(), jacobian[rows])
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=("x", "z"))
+    kinematics.set_state(np.concatenate([q, np.zeros(3)]))
+    assert kinematics.pose()[1] == pytest.approx(0.0, abs=1e-15)
+    assert np.all(kinematics.jacobian()[1] == 0.0)
+    np.testing.assert_array_equal(kinematics.position()[:2], pose[:2])
+    with pytest.raises(ValueError, match="coordinates must be distinct"):
+        PlanarFrameKinematics(arm_plant, "fingertip", coordinates=("x", "x"))
+    with pytest.raises(TypeError):  # keyword-only: a positional task could be a typo
+        PlanarFrameKinematics(arm_plant, "fingertip", ("x", "y"))
+    with pytest.raises(TypeError):
+        PlanarKinematics(arm_plant, "fingertip")
+    system = PlanarKinematics(arm_plant)
+    assert (system.frame_name, system.num_velocities) == ("fingertip", 3)
