@@ -7,7 +7,13 @@ import math
 import pytest
 from pydrake.geometry import AddContactMaterial, Box, ProximityProperties, Sphere
 from pydrake.math import RigidTransform
-from pydrake.multibody.plant import AddMultibodyPlant, CoulombFriction, MultibodyPlantConfig
+from pydrake.multibody.plant import (
+    AddMultibodyPlant,
+    ContactModel,
+    CoulombFriction,
+    MultibodyPlant,
+    MultibodyPlantConfig,
+)
 from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
@@ -111,4 +117,14 @@ def test_contact_force_sensor_checks_its_pairs():
         ContactForceSensor(plant, body_pairs=[("box", "world"), ("world", "box")])
     with pytest.raises(ValueError, match="at least one pair"):
         ContactForceSensor(plant, body_pairs=[])
+    twin = "".join(["bo", "x"])  # the same name, built at run time
+    with pytest.raises(ValueError, match="two different bodies"):
+        ContactForceSensor(plant, body_pairs=[("box", twin)])
+    with pytest.raises(TypeError):  # keyword-only
+        ContactForceSensor(plant, [("box", "world")])
+    hydroelastic = MultibodyPlant(time_step=1e-3)
+    hydroelastic.set_contact_model(ContactModel.kHydroelasticWithFallback)
+    hydroelastic.Finalize()
+    with pytest.raises(ValueError, match="reads point contact"):
+        ContactForceSensor(hydroelastic, body_pairs=[("box", "world")])
     assert sensor.ToAutoDiffXd().body_pairs == [("box", "world"), ("far", "world")]
