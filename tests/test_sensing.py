@@ -50,6 +50,9 @@ def test_sampled_flexiforce_has_no_continuous_state_and_converts():
     context = sensor.CreateDefaultContext()
     assert context.num_continuous_states() == 0
     assert context.num_discrete_state_groups() == 1
+    # An ADC's clock: samples at t = 0, T, 2T, ...
+    event = sensor.GetUniquePeriodicDiscreteUpdateAttribute()
+    assert (event.period_sec(), event.offset_sec()) == (1e-3, 0.0)
     assert sensor.ToAutoDiffXd().period == 1e-3
     with pytest.raises(ValueError, match="period"):
         FlexiForceSensor(period=-1e-3)
