@@ -53,6 +53,12 @@ def test_sampled_flexiforce_has_no_continuous_state_and_converts():
     # An ADC's clock: samples at t = 0, T, 2T, ...
     event = sensor.GetUniquePeriodicDiscreteUpdateAttribute()
     assert (event.period_sec(), event.offset_sec()) == (1e-3, 0.0)
+    assert sensor.EvalTimeDerivatives(context).size() == 0
+    # Unloaded, the held voltage is the offset: the reading is the noise alone, added.
+    assert sensor.measured_force_output.size() == 1
+    sensor.contact_force_input.FixValue(context, [0.0])
+    sensor.noise_input.FixValue(context, [0.3])
+    assert sensor.measured_force_output.Eval(context)[0] == pytest.approx(0.3, abs=1e-12)
     assert sensor.ToAutoDiffXd().period == 1e-3
     with pytest.raises(ValueError, match="period"):
         FlexiForceSensor(period=-1e-3)
