@@ -15,6 +15,7 @@ from admittance.diagrams.scenario import CONTROLLER_KINDS, ScenarioError, load_s
 from admittance.systems.adaptive_impedance import AdaptiveImpedance
 from admittance.systems.classical_admittance import ClassicalAdmittance
 from admittance.systems.fixed_reference import FixedReference
+from admittance.systems.force_axes import force_error
 from admittance.systems.optimal_admittance import OptimalAdmittance
 
 
@@ -72,6 +73,16 @@ def test_a_broken_sensor_reading_holds_the_controller(block, state):
     assert np.all(np.isfinite(derivatives))
     healthy = _fix(block, measured=5.0, desired=5.0, state=state)  # E = 0 exactly
     np.testing.assert_allclose(derivatives, block.EvalTimeDerivatives(healthy).CopyToVector())
+
+
+def test_the_force_error_of_a_broken_reading_is_zero_for_autodiff_too():
+    """The baselines' E = Fr - Fm per axis (systems/force_axes.py): 0 where Fm is NaN, for
+    floats and for AutoDiffXd (a converted baseline in Linearize) alike."""
+    assert force_error(float, np.array([5.0, 5.0]), np.array([4.0, math.nan])) == [1.0, 0.0]
+    errors = force_error(
+        AutoDiffXd, [AutoDiffXd(5.0), AutoDiffXd(5.0)], [AutoDiffXd(4.0), AutoDiffXd(math.nan)]
+    )
+    assert [e.value() for e in errors] == [1.0, 0.0]
 
 
 @pytest.mark.parametrize(
