@@ -330,3 +330,24 @@ def test_the_held_value_stays_the_pre_fault_reading_until_the_flag_clears(monito
         assert _trusted(monitor) == before[-1]
     assert not _sample(monitor, 5.0)[kind]
     assert _trusted(monitor) == 5.0
+
+
+def test_evidence_is_strictly_beyond_the_tolerance(arm_plant):
+    """The rules flag what lies beyond F_tol, not at it. A reading 1 N below the observer's
+    with no change (allowance 0): exactly F_tol = 1 N off, plausible. The tip moving in
+    contact at the speed whose predicted change k_hat |x'| T is F_tol itself (the tolerance
+    set to that product, the same floats the monitor multiplies): not stuck."""
+    monitor = _quiet_moving(arm_plant, [0.0, 0.0, 0.0])
+    monitor[0].set_reading(monitor[1], 5.0)
+    assert not any(_sample(monitor, 5.0, observed=6.0)["implausible"] for _ in range(4))
+    detector, context = _quiet_moving(arm_plant, [0.01, 0.0, 0.0])
+    state = detector.estimated_state_input.Eval(context)
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics.set_state(state)
+    speed = abs((kinematics.jacobian() @ state[3:])[0])
+    edge = _detector(arm_plant, noise_std=0.0, force_tolerance=5e4 * speed * PERIOD)
+    edge_context = edge.CreateDefaultContext()
+    for port in ("estimated_state", "stiffness_estimate"):
+        edge.GetInputPort(port).FixValue(edge_context, detector.GetInputPort(port).Eval(context))
+    edge.set_reading(edge_context, 5.0)
+    assert not any(_sample((edge, edge_context), 5.0)["stuck"] for _ in range(4))
