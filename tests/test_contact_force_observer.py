@@ -55,8 +55,10 @@ def test_the_integral_follows_the_applied_gravity_and_external_torques(arm):
     plant.SetPositionsAndVelocities(plant_context, state)
     gravity = plant.CalcGravityGeneralizedForces(plant_context)
     rate = observer.EvalTimeDerivatives(context).CopyToVector()
+    # The same plant terms summed: equal to the bit here (measured); 1e-12 allows for
+    # another order of the sum.
     np.testing.assert_allclose(rate, actuation + gravity + external, rtol=1e-12, atol=1e-12)
-    # p_I itself: M v - r / K_o.
+    # p_I itself: M v - r / K_o (equal to the bit as well).
     momentum = plant.CalcMassMatrix(plant_context) @ state[3:]
     np.testing.assert_allclose(
         context.get_continuous_state_vector().CopyToVector(),
