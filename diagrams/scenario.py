@@ -398,7 +398,15 @@ def _unknown_key_error(key: str, valid: typing.Iterable[str]) -> ScenarioError:
     # Candidates: every full key and every section ("wall", "admittance", ...).
     sections = {k.rsplit(".", i)[0] for k in valid for i in range(1, k.count(".") + 1)}
     close = difflib.get_close_matches(key, valid + sorted(sections), n=1, cutoff=0.5)
-    hint = f"; did you mean '{close[0]}'?" if close else ""
+    section = key.rsplit(".", 1)[0] if "." in key else None
+    if close and close[0] != section:
+        hint = f"; did you mean '{close[0]}'?"
+    elif section in sections:
+        # A section that exists, a key it does not have: name the keys it has.
+        keys = sorted(k[len(section) + 1 :] for k in valid if k.startswith(section + "."))
+        hint = f"; {section} has {', '.join(keys)}"
+    else:
+        hint = f"; did you mean '{close[0]}'?" if close else ""
     return ScenarioError(f"{key}: unknown scenario key{hint}")
 
 

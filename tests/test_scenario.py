@@ -73,6 +73,12 @@ def test_force_reference_beyond_the_sensor_is_rejected():
         ("wall.stiffness=1e12", "wall.stiffness: must be in (0, 1e+09] N/m"),
         ("force_reference=60", "admittance.max_push: must be > force_reference / pid.kp[0]"),
         ("wal.stiffness=1", "wal.stiffness: unknown scenario key; did you mean 'wall"),
+        # A section that exists with a key it lacks: its keys, not the section itself.
+        (
+            "safety.bogus=1",
+            "safety.bogus: unknown scenario key; safety has damping_ratio, enabled, "
+            "max_stiffness, stability_margin",
+        ),
     ],
 )
 def test_bad_input_names_the_key(override, message):
