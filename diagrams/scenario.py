@@ -13,7 +13,6 @@ what is allowed; nothing deeper than this module sees unvalidated values.
 
 import copy
 import dataclasses
-import difflib
 import functools
 import math
 import typing
@@ -24,6 +23,7 @@ import yaml  # PyYAML, which pydrake.common.yaml is built on
 from pydrake.common.yaml import yaml_dump_typed, yaml_load, yaml_load_typed
 from pydrake.systems.analysis import SimulatorConfig
 
+from admittance.diagrams.key_hints import unknown_key_hint
 from admittance.diagrams.safety_config import SafetyConfig
 from admittance.urdf import URDF_DIR
 
@@ -394,20 +394,7 @@ def _check_type(key: str, value, kind):
 
 
 def _unknown_key_error(key: str, valid: typing.Iterable[str]) -> ScenarioError:
-    valid = list(valid)
-    # Candidates: every full key and every section ("wall", "admittance", ...).
-    sections = {k.rsplit(".", i)[0] for k in valid for i in range(1, k.count(".") + 1)}
-    close = difflib.get_close_matches(key, valid + sorted(sections), n=1, cutoff=0.5)
-    section = key.rsplit(".", 1)[0] if "." in key else None
-    if close and close[0] != section:
-        hint = f"; did you mean '{close[0]}'?"
-    elif section in sections:
-        # A section that exists, a key it does not have: name the keys it has.
-        keys = sorted(k[len(section) + 1 :] for k in valid if k.startswith(section + "."))
-        hint = f"; {section} has {', '.join(keys)}"
-    else:
-        hint = f"; did you mean '{close[0]}'?" if close else ""
-    return ScenarioError(f"{key}: unknown scenario key{hint}")
+    return ScenarioError(f"{key}: unknown scenario key{unknown_key_hint(key, valid)}")
 
 
 def parse_value(text: str):
