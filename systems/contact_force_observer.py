@@ -74,7 +74,6 @@ def ContactForceObserver_(T):
             self._gain = float(gain)
             self._normal_axis = int(normal_axis)
             self._kinematics = PlanarFrameKinematics(plant, frame_name)
-            self._context = plant.CreateDefaultContext()
             nq, nv = plant.num_positions(), plant.num_velocities()
             self._num_positions = nq
             self._actuation_matrix = plant.MakeActuationMatrix()
@@ -104,29 +103,31 @@ def ContactForceObserver_(T):
         def gain(self) -> float:
             return self._gain
 
+        def _momentum(self, context):
+            """M(q) v at the context's state; leaves the kinematics set to that state."""
+            state = self.estimated_state_input.Eval(context)
+            self._kinematics.set_state(state)
+            mass_matrix = self._plant.CalcMassMatrix(self._kinematics.context)
+            return mass_matrix @ state[self._num_positions :]
+
         def _residual(self, context):
             """r = K_o (M v - p_I) at the context's state and input."""
-            state = self.estimated_state_input.Eval(context)
-            self._plant.SetPositionsAndVelocities(self._context, state)
-            momentum = self._plant.CalcMassMatrix(self._context) @ state[self._num_positions :]
+            momentum = self._momentum(context)
             return self._gain * (momentum - context.get_continuous_state_vector().CopyToVector())
 
         def set_external_torque(self, context, external_torque) -> None:
             """Sets p_I so that r equals `external_torque` at the context's state (warm start)."""
-            state = self.estimated_state_input.Eval(context)
-            self._plant.SetPositionsAndVelocities(self._context, state)
-            momentum = self._plant.CalcMassMatrix(self._context) @ state[self._num_positions :]
+            momentum = self._momentum(context)
             context.SetContinuousState(momentum - np.asarray(external_torque) / self._gain)
 
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
             residual = self._residual(context)
             torque = self._actuation_matrix @ self.actuation_input.Eval(context)
-            gravity = self._plant.CalcGravityGeneralizedForces(self._context)
+            gravity = self._plant.CalcGravityGeneralizedForces(self._kinematics.context)
             derivatives.get_mutable_vector().SetFromVector(torque + gravity + residual)
 
         def _CalcContactForce(self, context, output) -> None:
-            residual = self._residual(context)
-            self._kinematics.set_state(self.estimated_state_input.Eval(context))
+            residual = self._residual(context)  # sets the kinematics to the context's state
             jacobian = self._kinematics.jacobian()
             if T is not float:
                 residual = np.array([r.value() for r in residual])

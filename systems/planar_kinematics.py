@@ -151,6 +151,11 @@ class PlanarFrameKinematics:
         """Sets the private context's positions and velocities from [q; v]."""
         self.plant.SetPositionsAndVelocities(self._context, state)
 
+    @property
+    def context(self):
+        """The private plant context at the last state set (for M(q), g(q) at that state)."""
+        return self._context
+
     def pose(self):
         """X at the last state set: (x, y, theta) by default."""
         X_WF = self.plant.CalcRelativeTransform(self._context, self._world, self.frame)

@@ -209,7 +209,6 @@ def SafeAdmittance_(T):
             self._axis = int(normal_axis)
             self._num_axes = int(num_axes)
             self._kinematics = PlanarFrameKinematics(plant, frame_name)
-            self._plant_context = plant.CreateDefaultContext()
             nq, nv = plant.num_positions(), plant.num_velocities()
             self._num_positions = nq
 
@@ -256,16 +255,12 @@ def SafeAdmittance_(T):
             """m, c, v_max, v_adv, the target schedule and the contact state at `context`."""
             return self._law_cache.Eval(context)[2]
 
-        def _derived(self, state, jacobian, stiffness_estimate: float, force_reference: float):
-            """The schedule's numbers from the plant state and J (values only)."""
-            plant = self._plant
-            values = state
+        def _derived(self, jacobian, stiffness_estimate: float, force_reference: float):
+            """The schedule's numbers (values only) from J and M(q) at the state the
+            kinematics were last set to."""
+            mass_matrix = self._plant.CalcMassMatrix(self._kinematics.context)
             if T is not float:
-                values = np.array([T(_value(x)) for x in state])
                 jacobian = np.array([[_value(x) for x in row] for row in jacobian])
-            plant.SetPositionsAndVelocities(self._plant_context, values)
-            mass_matrix = plant.CalcMassMatrix(self._plant_context)
-            if T is not float:
                 mass_matrix = np.array([[_value(x) for x in row] for row in mass_matrix])
             mass = contact_model.apparent_mass(mass_matrix, jacobian[self._axis])
             damping = contact_model.injected_damping(
@@ -329,7 +324,7 @@ def SafeAdmittance_(T):
             reference = _value(self.desired_force_input.Eval(context)[0])
             state = self.estimated_state_input.Eval(context)
             self._kinematics.set_state(state)
-            numbers = self._derived(state, self._kinematics.jacobian(), estimate, reference)
+            numbers = self._derived(self._kinematics.jacobian(), estimate, reference)
             scale = numbers["schedule_target"]
             context.SetContinuousState([0.0, scale])
             proportional = self._law_cache.Eval(context)[3]  # Gamma_s K alpha E_u
@@ -347,7 +342,7 @@ def SafeAdmittance_(T):
             self._kinematics.set_state(state)
             jacobian = self._kinematics.jacobian()
             speed = jacobian[self._axis] @ state[self._num_positions :]
-            numbers = self._derived(state, jacobian, _value(estimate), _value(reference))
+            numbers = self._derived(jacobian, _value(estimate), _value(reference))
             numbers["in_contact"] = _value(force) >= self._contact_force
 
             scale_rate = (numbers["schedule_target"] - scale) / self._tau_schedule
