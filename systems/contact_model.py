@@ -77,26 +77,8 @@ def apparent_mass(mass_matrix, jacobian_row) -> float:
         mass_matrix: the plant's M(q), nv x nv (symmetric positive definite).
         jacobian_row: j, the row of the task Jacobian along the wall normal (nv,).
     """
-    # Gaussian elimination on Python floats: numpy's solve costs ~80 us on a 3 x 3, and
-    # this runs at every derivative evaluation of the closed loop.
-    matrix = [[float(x) for x in row] for row in np.asarray(mass_matrix)]
-    rhs = [float(x) for x in np.asarray(jacobian_row)]
-    size = len(rhs)
-    for k in range(size):
-        pivot = matrix[k][k]
-        for i in range(k + 1, size):
-            factor = matrix[i][k] / pivot
-            if factor:
-                for j in range(k, size):
-                    matrix[i][j] -= factor * matrix[k][j]
-                rhs[i] -= factor * rhs[k]
-    solution = [0.0] * size
-    for k in reversed(range(size)):
-        solution[k] = (rhs[k] - sum(matrix[k][j] * solution[j] for j in range(k + 1, size))) / (
-            matrix[k][k]
-        )
-    row = [float(x) for x in np.asarray(jacobian_row)]
-    return 1.0 / sum(a * b for a, b in zip(row, solution, strict=True))
+    row = np.asarray(jacobian_row, dtype=float)
+    return 1.0 / float(row @ np.linalg.solve(np.asarray(mass_matrix, dtype=float), row))
 
 
 def damping_ratio(mass: float, kp: float, kd: float, stiffness: float) -> float:
