@@ -228,3 +228,13 @@ def test_task_vectors_of_other_coordinates_and_their_jacobian_rows(arm_plant):
         PlanarKinematics(arm_plant, "fingertip")
     system = PlanarKinematics(arm_plant)
     assert (system.frame_name, system.num_velocities) == ("fingertip", 3)
+
+
+def test_its_context_holds_the_state_last_set(arm_plant):
+    """The safety systems read M(q) and g(q) from this context after set_state: it must be
+    the plant context set to [q; v], not a fresh one."""
+    q, v = np.array([-0.45, 1.66, 0.36]), np.array([0.1, -0.2, 0.3])
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics.set_state(np.concatenate([q, v]))
+    np.testing.assert_array_equal(arm_plant.GetPositions(kinematics.context), q)
+    np.testing.assert_array_equal(arm_plant.GetVelocities(kinematics.context), v)
