@@ -11,7 +11,7 @@ import pytest
 
 from admittance.diagrams.app.bench import run_benchmark
 from admittance.diagrams.app.bench_report import format_benchmark, load_benchmark_report
-from admittance.diagrams.scenario import load_scenario
+from admittance.diagrams.scenario.files import load_scenario
 
 
 @pytest.fixture(scope="module")

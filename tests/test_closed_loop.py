@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from admittance.diagrams.scenario import load_scenario
-from admittance.diagrams.simulation import run_scenario
+from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.scenario.files import load_scenario
 
 
 def _event(result, kind):

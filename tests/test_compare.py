@@ -61,13 +61,13 @@ def test_compare_rejects_an_unknown_controller(tmp_path, capsys):
 
 
 def test_a_failed_run_is_a_row_with_its_reason():
-    from admittance.diagrams.app.compare import ControllerRun, _row, format_table
+    from admittance.diagrams.app.compare import ControllerRun, table_row, format_table
 
     failed = {"failed": True, "failure": "the integrator failed at t = 1.2 s: step too small"}
     ok = {"peak_force": 5.2, "final_mean_force": 5.01, "events": []}
     runs = [
-        ControllerRun("classical_admittance", _row("classical_admittance", failed, 5.0)),
-        ControllerRun("optimal_admittance", _row("optimal_admittance", ok, 5.0)),
+        ControllerRun("classical_admittance", table_row("classical_admittance", failed, 5.0)),
+        ControllerRun("optimal_admittance", table_row("optimal_admittance", ok, 5.0)),
     ]
     assert runs[0].row["verdict"] == "failed"
     assert runs[1].row["verdict"] == "tracks Fr"

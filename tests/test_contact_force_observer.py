@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from admittance.diagrams.closed_loop import SolvePlanarInverseKinematics
+from admittance.diagrams.robots.planar_arm import SolvePlanarInverseKinematics
 from admittance.systems.contact_force_observer import ContactForceObserver
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
 

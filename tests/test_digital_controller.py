@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import pytest
 
-from admittance.diagrams.scenario import load_scenario
-from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
+from admittance.diagrams.run.engine import SimulationDivergedError
+from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.scenario.files import load_scenario
 
 # The stiffness step moved from 15 s to 2 s, to keep the run short.
 SHORT = {"duration": 4.0, "wall.stiffness_steps": [{"time": 2.0, "stiffness": 1e5}]}

@@ -6,10 +6,12 @@ import json
 
 import pytest
 
-import admittance.diagrams.simulation as simulation
+import admittance.diagrams.run.engine as engine
 from admittance.diagrams.app.cli import main
-from admittance.diagrams.scenario import ScenarioError, load_scenario
-from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
+from admittance.diagrams.run.engine import SimulationDivergedError
+from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.scenario.files import load_scenario
+from admittance.diagrams.scenario.schema import ScenarioError
 
 
 def test_unreachable_trajectory_is_rejected_before_simulating():
@@ -25,7 +27,7 @@ def test_wall_behind_the_base_is_rejected():
 
 def test_divergence_stops_the_run_and_keeps_the_partial_log(monkeypatch, tmp_path, capsys):
     # Any motion at all counts as "diverged" here, so the monitor must fire early.
-    monkeypatch.setattr(simulation, "DIVERGED_JOINT_SPEED", 1e-3)
+    monkeypatch.setattr(engine, "DIVERGED_JOINT_SPEED", 1e-3)
     scenario = load_scenario("paper_moving_wall", ["duration=2"])
     message = r"joint speed exceeds 0.001 rad/s at t = "
     with pytest.raises(SimulationDivergedError, match=message) as error:

@@ -21,8 +21,9 @@ import numpy as np
 import pytest
 from pydrake.autodiffutils import AutoDiffXd
 
-from admittance.diagrams.scenario import ScenarioError, load_scenario
-from admittance.diagrams.simulation import run_scenario
+from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.scenario.files import load_scenario
+from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.systems.optimal_admittance import OptimalAdmittance
 from admittance.systems.sensor_fault import SensorFault
 

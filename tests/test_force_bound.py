@@ -14,8 +14,8 @@ import itertools
 
 import pytest
 
-from admittance.diagrams.scenario import load_scenario
-from admittance.diagrams.simulation import run_scenario
+from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.scenario.files import load_scenario
 
 MAX_FORCE = 10.0
 APPROACH = ["wall.motion_end=2.7", "duration=4"]

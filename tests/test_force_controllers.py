@@ -10,8 +10,10 @@ import numpy as np
 import pytest
 from pydrake.autodiffutils import AutoDiffXd
 
-from admittance.diagrams.force_controllers import baseline_gains
-from admittance.diagrams.scenario import CONTROLLER_KINDS, ScenarioError, load_scenario
+from admittance.diagrams.robots.planar_arm import baseline_gains
+from admittance.diagrams.scenario.files import load_scenario
+from admittance.diagrams.scenario.planar_arm import CONTROLLER_KINDS
+from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.systems.adaptive_impedance import AdaptiveImpedance
 from admittance.systems.classical_admittance import ClassicalAdmittance
 from admittance.systems.fixed_reference import FixedReference
@@ -147,7 +149,7 @@ def test_controller_keys_are_validated(override, message):
 
 
 def test_every_controller_kind_builds_a_loop():
-    from admittance.diagrams.closed_loop import BuildClosedLoop
+    from admittance.diagrams.loop.planar_arm import BuildClosedLoop
 
     for kind in CONTROLLER_KINDS:
         loop = BuildClosedLoop(load_scenario("paper_moving_wall", [f"controller.kind={kind}"]))

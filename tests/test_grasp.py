@@ -5,18 +5,17 @@ Short runs in the default suite; the full comparison table (docs/grasp.md) is sl
 
 from __future__ import annotations
 
-import base64
 import json
 
-import msgpack
 import numpy as np
 import pytest
 
 from admittance.diagrams.app.cli import main
-from admittance.diagrams.grasp import BRICK_JOINTS, BuildGrasp, SetGraspInitialConditions
-from admittance.diagrams.grasp_scenario import FINGERS
-from admittance.diagrams.grasp_simulation import CRUSH_FACTOR, DROP_LIMIT, run_grasp
-from admittance.diagrams.scenario import load_scenario
+from admittance.diagrams.loop.planar_gripper import BuildGrasp, SetGraspInitialConditions
+from admittance.diagrams.robots.planar_gripper import BRICK_JOINTS
+from admittance.diagrams.run.planar_gripper import CRUSH_FACTOR, DROP_LIMIT, run_grasp
+from admittance.diagrams.scenario.files import load_scenario
+from admittance.diagrams.scenario.planar_gripper import FINGERS
 
 # The grasp_hold plan: the side fingers close over 0.5 s, the forces ramp to Fr over the
 # next 0.5 s; 1.5 s of hold after that is enough to see the loop settle (it settles within
@@ -104,18 +103,15 @@ def test_the_result_folder_has_per_finger_columns_and_metrics(tmp_path, capsys):
 
 def test_replay_draws_the_hand_the_brick_and_the_forces_to_scale(held, tmp_path):
     """The brick's track is its logged pose; each finger's arrow is its force to scale."""
-    from test_visualization import _DATA_COMMAND, _tracks
+    from replay_data import replay_commands, replay_tracks
 
-    from admittance.diagrams import grasp_replay, visualization
+    from admittance.diagrams.views import gripper_replay as grasp_replay
+    from admittance.diagrams.views import replay as visualization
 
     path = grasp_replay.write_grasp_meshcat_replay(held, tmp_path / "grasp.html")
     html = path.read_text(encoding="utf-8")
-    commands = [
-        msgpack.unpackb(base64.b64decode(data), strict_map_key=False)
-        for data in _DATA_COMMAND.findall(html)
-    ]
-    tracks = _tracks(commands)
-    times = visualization._frame_times(held.time)
+    tracks = replay_tracks(replay_commands(html))
+    times = visualization.frame_times(held.time)
     bodies = {p.rsplit("/", 1)[-1] for p, prop in tracks if prop == "position"}
     assert {"brick_link", "finger1_link2", "finger2_link2", "finger3_tip_link"} <= bodies
     (brick_path,) = [p for p, prop in tracks if p.endswith("/brick_link") and prop == "position"]
@@ -127,7 +123,7 @@ def test_replay_draws_the_hand_the_brick_and_the_forces_to_scale(held, tmp_path)
     for index, finger in enumerate(FINGERS):
         force = np.interp(times[frame], held.time, held.force[:, index])
         shaft = tracks[(f"{grasp_replay.FORCE_PATH}/{finger}/shaft", "scale")][frame]["value"][0]
-        length = shaft + grasp_replay._HEAD_LENGTH
+        length = shaft + grasp_replay.ARROW_HEAD_LENGTH
         assert length == pytest.approx(force * grasp_replay.ARROW_METERS_PER_NEWTON, rel=1e-6)
 
 

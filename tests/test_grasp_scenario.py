@@ -5,8 +5,10 @@ from __future__ import annotations
 import pytest
 
 from admittance.diagrams.app.cli import main
-from admittance.diagrams.grasp_scenario import GraspScenario
-from admittance.diagrams.scenario import Scenario, ScenarioError, load_scenario
+from admittance.diagrams.scenario.files import load_scenario
+from admittance.diagrams.scenario.planar_arm import Scenario
+from admittance.diagrams.scenario.planar_gripper import GraspScenario
+from admittance.diagrams.scenario.schema import ScenarioError
 
 
 def test_grasp_builtins_load_as_grasp_scenarios():

@@ -1,9 +1,11 @@
-"""The library never imports the application.
+"""The layout: the library never imports the application, nor any module a private name.
 
-The library (admittance.systems and admittance.diagrams outside app/: scenario, closed
-loop, simulation, analysis, plots) builds and runs the model; the application
+The library (admittance.systems, and admittance.diagrams' concept packages: scenario,
+robots, loop, run, analysis, views) builds and runs the model; the application
 (admittance.diagrams.app: the command line, result folders, bench, compare, sweep, the
-stability report) is a layer on top of it. The dependency goes one way only.
+stability report) is a layer on top of it. The dependency goes one way only. No module
+reaches into another's private (`_`-prefixed) names: what one module offers another is
+public.
 """
 
 from __future__ import annotations
@@ -14,23 +16,39 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 REPOSITORY = Path(__file__).resolve().parents[1]
 APPLICATION = "admittance.diagrams.app"
 # The folders of the library, and their import names.
 LIBRARY = {"systems": "admittance.systems", "diagrams": "admittance.diagrams"}
-# A module longer than this holds more than one topic (the longest today: bench.py, 593).
-MAX_MODULE_LINES = 650
+# A module longer than this holds more than one topic.
+MAX_MODULE_LINES = 600
+# The concept packages of admittance.diagrams.
+CONCEPTS = ("scenario", "robots", "loop", "run", "analysis", "views", "app")
 
 
 def _library_files() -> dict[str, Path]:
     """Module name -> file, for every library module in the repository."""
     modules = {}
     for folder, package in LIBRARY.items():
-        for path in sorted((REPOSITORY / folder).glob("*.py")):
-            name = package if path.stem == "__init__" else f"{package}.{path.stem}"
-            modules[name] = path
+        for path in sorted((REPOSITORY / folder).rglob("*.py")):
+            parts = path.relative_to(REPOSITORY / folder).with_suffix("").parts
+            if parts[0] == "app":
+                continue
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            modules[".".join((package, *parts))] = path
+    return modules
+
+
+def _every_module() -> dict[str, Path]:
+    """Module name -> file, for every module of the project, the application included."""
+    modules = {}
+    for folder, package in {**LIBRARY, "urdf": "admittance.urdf"}.items():
+        for path in sorted((REPOSITORY / folder).rglob("*.py")):
+            parts = path.relative_to(REPOSITORY / folder).with_suffix("").parts
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            modules[".".join((package, *parts))] = path
     return modules
 
 
@@ -54,7 +72,8 @@ def _imported_names(path: Path, module: str) -> set[str]:
 def test_library_modules_import_no_application_module():
     modules = _library_files()
     assert (
-        "admittance.diagrams.closed_loop" in modules and "admittance.systems.flexiforce" in modules
+        "admittance.diagrams.loop.planar_arm" in modules
+        and "admittance.systems.flexiforce" in modules
     )
     offending = {
         name: sorted(n for n in _imported_names(path, name) if n.startswith(APPLICATION))
@@ -79,12 +98,81 @@ def test_importing_the_whole_library_loads_no_application_module():
     assert json.loads(completed.stdout) == []
 
 
-@pytest.mark.parametrize("folder", ["systems", "diagrams", "diagrams/app", "diagrams/app/sweep"])
-def test_no_module_holds_more_than_one_topic(folder):
+def test_no_module_holds_more_than_one_topic():
     lengths = {
-        path.name: len(path.read_text().splitlines()) for path in (REPOSITORY / folder).glob("*.py")
+        str(path.relative_to(REPOSITORY)): len(path.read_text().splitlines())
+        for path in _every_module().values()
     }
-    assert lengths and {n: k for n, k in lengths.items() if k > MAX_MODULE_LINES} == {}
+    assert len(lengths) > 50
+    assert {n: k for n, k in lengths.items() if k > MAX_MODULE_LINES} == {}
+
+
+def test_diagrams_is_grouped_by_concept():
+    """Every module of admittance.diagrams lives in a concept package; no family of
+    name-prefixed modules stands in for a package."""
+    loose = sorted(p.name for p in (REPOSITORY / "diagrams").glob("*.py") if p.stem != "__init__")
+    assert loose == []
+    packages = sorted(
+        p.name for p in (REPOSITORY / "diagrams").iterdir() if (p / "__init__.py").is_file()
+    )
+    assert set(CONCEPTS) <= set(packages)
+    for package in packages:
+        stems = [p.stem for p in (REPOSITORY / "diagrams" / package).rglob("*.py")]
+        prefixes = [s.split("_")[0] for s in stems if "_" in s and s != "__init__"]
+        families = {p for p in prefixes if prefixes.count(p) > 2}
+        assert families == set(), (package, families)
+
+
+def _private_imports(path: Path, module: str, modules: dict[str, Path]) -> list[str]:
+    """`from X import _name` (and `X._name`) where X is another module of the project."""
+    found = []
+    package = module if path.stem == "__init__" else module.rsplit(".", 1)[0]
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        if isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parent = package.rsplit(".", node.level - 1)[0] if node.level > 1 else package
+                base = f"{parent}.{base}" if base else parent
+            if base.startswith("admittance") and base != module:
+                found += [
+                    f"{base}.{a.name}"
+                    for a in node.names
+                    if a.name.startswith("_") and not a.name.startswith("__")
+                ]
+        elif isinstance(node, ast.Attribute) and node.attr.startswith("_"):
+            chain, value = [node.attr], node.value
+            while isinstance(value, ast.Attribute):
+                chain.append(value.attr)
+                value = value.value
+            if isinstance(value, ast.Name) and value.id == "admittance":
+                found.append(".".join(["admittance", *reversed(chain)]))
+    return found
+
+
+def test_no_module_imports_a_private_name_of_another():
+    modules = _every_module()
+    assert "admittance.diagrams.app.cli" in modules
+    tests = {f"tests.{p.stem}": p for p in (REPOSITORY / "tests").glob("*.py")}
+    offending = {
+        name: found
+        for name, path in {**modules, **tests}.items()
+        if (found := _private_imports(path, name, modules))
+    }
+    assert offending == {}
+
+
+def test_the_private_import_check_catches_one(tmp_path):
+    """The check above is not vacuous: a module importing another's private name fails it."""
+    module = tmp_path / "offender.py"
+    module.write_text(
+        "from admittance.diagrams.run.metrics import _hidden\n"
+        "import admittance.diagrams.run.metrics\n"
+        "x = admittance.diagrams.run.metrics._other\n"
+    )
+    assert _private_imports(module, "admittance.offender", {}) == [
+        "admittance.diagrams.run.metrics._hidden",
+        "admittance.diagrams.run.metrics._other",
+    ]
 
 
 def test_the_command_line_loads_every_drake_module_the_project_imports():
@@ -94,7 +182,7 @@ def test_the_command_line_loads_every_drake_module_the_project_imports():
     from admittance.diagrams.app.cli import DRAKE_MODULES
 
     imported = set()
-    for folder in ("systems", "diagrams", "urdf"):
+    for folder in ("systems", "diagrams", "urdf"):  # every sub-package too
         for path in (REPOSITORY / folder).rglob("*.py"):
             for node in ast.walk(ast.parse(path.read_text())):
                 if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("pydrake"):

@@ -5,8 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from admittance.diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium
-from admittance.diagrams.scenario import load_scenario
+from admittance.diagrams.analysis.linearization import (
+    FindContactEquilibrium,
+    LinearizeAtEquilibrium,
+)
+from admittance.diagrams.scenario.files import load_scenario
 
 
 def _linearize(*overrides):

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
-from admittance.diagrams.closed_loop import BuildClosedLoop, SetInitialConditions
-from admittance.diagrams.scenario import load_scenario
+from admittance.diagrams.loop.planar_arm import BuildClosedLoop, SetInitialConditions
+from admittance.diagrams.scenario.files import load_scenario
 
 DURATION = 300.0
 CHUNK = 50.0  # a multiple of the trajectory's 10 s period

@@ -20,15 +20,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pydrake.systems.framework import DiagramBuilder
 
-from admittance.diagrams.closed_loop import AddScenarioArm
-from admittance.diagrams.scenario import (
-    FAULT_KINDS,
-    FAULT_KINDS_WITH_VALUE,
-    ScenarioError,
-    load_scenario,
-    scenario_keys,
-)
-from admittance.diagrams.simulation import run_scenario
+from admittance.diagrams.robots.planar_arm import AddScenarioArm
+from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.scenario.files import load_scenario
+from admittance.diagrams.scenario.planar_arm import Scenario
+from admittance.diagrams.scenario.schema import ScenarioError, scenario_keys
+from admittance.diagrams.scenario.sections import FAULT_KINDS, FAULT_KINDS_WITH_VALUE
 from admittance.urdf import PLANAR_ARM_URDF
 
 BAD = st.sampled_from([0.0, -1.0, math.nan, math.inf, -math.inf, 1e300, "abc"])
@@ -101,7 +98,7 @@ def test_every_scenario_is_rejected_clearly_or_runs_finite(chosen):
 # Drake, no OverflowError, no UnicodeDecodeError), and what loads is what was written.
 
 LOADING = settings(max_examples=40, deadline=None, derandomize=True)
-SCENARIO_KEYS = sorted(scenario_keys())
+SCENARIO_KEYS = sorted(scenario_keys(Scenario))
 ARM_URDF = PLANAR_ARM_URDF.read_text()
 
 

@@ -22,10 +22,10 @@ import math
 import numpy as np
 import pytest
 
-from admittance.diagrams.closed_loop import BuildClosedLoop
-from admittance.diagrams.scenario import load_scenario
-from admittance.diagrams.simulation import run_scenario
-from admittance.diagrams.stability import max_real_part
+from admittance.diagrams.analysis.stability import max_real_part
+from admittance.diagrams.loop.planar_arm import BuildClosedLoop
+from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.scenario.files import load_scenario
 
 FMAX = 10.0
 FR = 5.0
@@ -204,7 +204,7 @@ def test_the_monte_carlo_keeps_every_guarantee(tmp_path):
     ],
 )
 def test_bad_safety_input_is_one_line_naming_the_key(overrides, message):
-    from admittance.diagrams.scenario import ScenarioError
+    from admittance.diagrams.scenario.schema import ScenarioError
 
     with pytest.raises(ScenarioError) as error:
         load_scenario("paper_stiffness_step", overrides)
@@ -214,8 +214,8 @@ def test_bad_safety_input_is_one_line_naming_the_key(overrides, message):
 def test_a_tip_beyond_the_reference_s_travel_cannot_start_with_the_layer():
     """safe_contact starts the tip 6 cm in front of Xd; with max_retract 5 cm the reference
     could not start at the tip (it would jump, and pull the arm): one line, before any run."""
-    from admittance.diagrams.closed_loop import CheckScenarioStarts
-    from admittance.diagrams.scenario import ScenarioError
+    from admittance.diagrams.loop.planar_arm import CheckScenarioStarts
+    from admittance.diagrams.scenario.schema import ScenarioError
 
     with pytest.raises(ScenarioError, match=r"^arm.initial_position, admittance.max_retract"):
         CheckScenarioStarts(load_scenario("safe_contact", ["admittance.max_retract=0.05"]))

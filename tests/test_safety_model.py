@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from admittance.diagrams.scenario import load_scenario
-from admittance.diagrams.stability import critical_gamma as full_critical_gamma
+from admittance.diagrams.analysis.stability import critical_gamma as full_critical_gamma
+from admittance.diagrams.scenario.files import load_scenario
 from admittance.systems import contact_model as model
 
 
@@ -130,7 +130,7 @@ def test_reduced_critical_gamma_is_below_the_full_linearization():
 def test_apparent_mass_of_the_arm_at_the_paper_s_pose(arm_plant):
     """The fingertip of the built-in arm at (0.2, -0.25, pi/2): 0.92 kg along x (the
     value the stability check above uses), from M(q) and J(q) of the plant."""
-    from admittance.diagrams.closed_loop import SolvePlanarInverseKinematics
+    from admittance.diagrams.robots.planar_arm import SolvePlanarInverseKinematics
     from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
     q = SolvePlanarInverseKinematics(

@@ -6,7 +6,8 @@ import math
 
 import pytest
 
-from admittance.diagrams.scenario import ScenarioError, builtin_scenario_names, load_scenario
+from admittance.diagrams.scenario.files import builtin_scenario_names, load_scenario
+from admittance.diagrams.scenario.schema import ScenarioError
 
 
 def test_builtin_scenarios_exist_and_load():

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 from pydrake.autodiffutils import AutoDiffXd
 
-from admittance.diagrams.app.cli import main
-from admittance.diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium
-from admittance.diagrams.scenario import load_scenario
-from admittance.diagrams.simulation import run_scenario
-from admittance.diagrams.stability import (
+from admittance.diagrams.analysis.linearization import (
+    FindContactEquilibrium,
+    LinearizeAtEquilibrium,
+)
+from admittance.diagrams.analysis.stability import (
     critical_gamma,
     linear_versus_nonlinear,
     lyapunov_along_trajectory,
@@ -29,6 +29,9 @@ from admittance.diagrams.stability import (
     symbolic_eq13,
     with_values,
 )
+from admittance.diagrams.app.cli import main
+from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.scenario.files import load_scenario
 from admittance.systems.optimal_admittance import OptimalAdmittance
 
 

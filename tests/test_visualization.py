@@ -1,4 +1,5 @@
-"""The Meshcat replay of a run and the Graphviz picture of the loop (diagrams/visualization.py).
+"""The Meshcat replay of a run (diagrams/views/replay.py) and the Graphviz picture of the loop
+(diagrams/views/picture.py).
 
 The replay is checked by decoding the Meshcat commands stored in the HTML: the animation
 must pose the arm at the logged joint positions, put the wall's face at Xe(t) and draw the
@@ -7,24 +8,22 @@ force arrow with a length proportional to the force, in a 2-D view of the x-y pl
 
 from __future__ import annotations
 
-import base64
 import re
 import struct
 
-import msgpack
 import numpy as np
 import pytest
 from pydrake.systems.framework import DiagramBuilder
+from replay_data import replay_commands, replay_tracks
 
-import admittance.diagrams.visualization as visualization
-from admittance.diagrams.closed_loop import AddScenarioArm, BuildClosedLoop
-from admittance.diagrams.scenario import load_scenario
-from admittance.diagrams.simulation import run_scenario
-from admittance.diagrams.visualization import (
-    DiagramPictureError,
-    write_diagram_picture,
-    write_meshcat_replay,
-)
+import admittance.diagrams.views.picture as picture
+import admittance.diagrams.views.replay as visualization
+from admittance.diagrams.loop.planar_arm import BuildClosedLoop
+from admittance.diagrams.robots.planar_arm import AddScenarioArm
+from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.scenario.files import load_scenario
+from admittance.diagrams.views.picture import DiagramPictureError, write_diagram_picture
+from admittance.diagrams.views.replay import write_meshcat_replay
 
 # The paper's Fig. 1 blocks, as named by BuildClosedLoop, and some of their ports.
 FIG1_BLOCKS = [
@@ -38,8 +37,6 @@ FIG1_BLOCKS = [
     "force_reference",
 ]
 FIG1_PORTS = ["measured_force", "desired_force", "reference_offset", "actuation", "contact_force"]
-
-_DATA_COMMAND = re.compile(r'fetch\("data:application/octet-binary;base64,([A-Za-z0-9+/=]*)"\)')
 
 
 @pytest.fixture(scope="module")
@@ -56,21 +53,7 @@ def replay(moving_wall_result, tmp_path_factory):
     written = write_meshcat_replay(moving_wall_result, path)
     assert written == path
     html = path.read_text(encoding="utf-8")
-    commands = [
-        msgpack.unpackb(base64.b64decode(data), strict_map_key=False)
-        for data in _DATA_COMMAND.findall(html)
-    ]
-    return path, html, commands
-
-
-def _tracks(commands) -> dict[tuple[str, str], list[dict]]:
-    """(path, property) -> keyframes of the one recorded animation."""
-    (animation,) = [c for c in commands if c["type"] == "set_animation"]
-    return {
-        (entry["path"], track["name"].lstrip(".")): track["keys"]
-        for entry in animation["animations"]
-        for track in entry["clip"]["tracks"]
-    }
+    return path, html, replay_commands(html)
 
 
 def test_replay_html_is_self_contained(replay):
@@ -89,8 +72,8 @@ def test_replay_html_is_self_contained(replay):
 
 def test_replay_poses_the_arm_at_the_logged_joint_positions(replay, moving_wall_result):
     _, _, commands = replay
-    tracks = _tracks(commands)
-    times = visualization._frame_times(moving_wall_result.time)
+    tracks = replay_tracks(commands)
+    times = visualization.frame_times(moving_wall_result.time)
     assert times[0] == 0.0 and times[-1] == pytest.approx(0.5)
     assert len(times) == 0.5 * visualization.REPLAY_FRAMES_PER_SECOND + 1
 
@@ -115,9 +98,9 @@ def test_replay_poses_the_arm_at_the_logged_joint_positions(replay, moving_wall_
 
 def test_replay_draws_the_wall_at_its_position_and_the_force_to_scale(replay, moving_wall_result):
     _, _, commands = replay
-    tracks = _tracks(commands)
+    tracks = replay_tracks(commands)
     result = moving_wall_result
-    times = visualization._frame_times(result.time)
+    times = visualization.frame_times(result.time)
 
     # The wall slab's face is at Xe(t), and it moves (1.5 mm between 0.1 s and 0.4 s).
     wall = tracks[(visualization.WALL_PATH, "position")]
@@ -248,7 +231,7 @@ def test_diagram_picture_refuses_an_unknown_suffix(loop_diagram, tmp_path):
 def test_diagram_picture_without_a_renderer_says_so_in_one_line(
     loop_diagram, tmp_path, monkeypatch
 ):
-    monkeypatch.setattr(visualization, "_graphviz_command", lambda: None)
+    monkeypatch.setattr(picture, "_graphviz_command", lambda: None)
     with pytest.raises(DiagramPictureError, match="pip install graphviz-pure") as error:
         write_diagram_picture(loop_diagram, tmp_path / "loop.png")
     assert "\n" not in str(error.value) and "loop.png" in str(error.value)
@@ -258,7 +241,7 @@ def test_diagram_picture_without_a_renderer_says_so_in_one_line(
 
 
 def test_diagram_picture_reports_a_failing_renderer(loop_diagram, tmp_path, monkeypatch):
-    monkeypatch.setattr(visualization, "_graphviz_command", lambda: "/bin/false")
+    monkeypatch.setattr(picture, "_graphviz_command", lambda: "/bin/false")
     with pytest.raises(DiagramPictureError, match="false failed") as error:
         write_diagram_picture(loop_diagram, tmp_path / "loop.svg")
     assert "\n" not in str(error.value)

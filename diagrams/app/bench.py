@@ -50,9 +50,11 @@ from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
 from admittance.diagrams.app.formatting import seconds
-from admittance.diagrams.closed_loop import AddScenarioArm, BuildClosedLoop, SetInitialConditions
-from admittance.diagrams.scenario import LoggingConfig, Scenario
-from admittance.diagrams.simulation import run_scenario
+from admittance.diagrams.loop.planar_arm import BuildClosedLoop, SetInitialConditions
+from admittance.diagrams.robots.planar_arm import AddScenarioArm
+from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.scenario.planar_arm import Scenario
+from admittance.diagrams.scenario.sections import LoggingConfig
 
 __all__ = ["run_benchmark"]
 

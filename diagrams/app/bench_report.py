@@ -13,7 +13,7 @@ import os
 from pathlib import Path
 
 from admittance.diagrams.app.formatting import number, seconds
-from admittance.diagrams.scenario import Scenario
+from admittance.diagrams.scenario.planar_arm import Scenario
 
 __all__ = ["format_benchmark", "load_benchmark_report"]
 

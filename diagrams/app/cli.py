@@ -30,16 +30,13 @@ import sys
 from pathlib import Path
 
 from admittance.diagrams.app.interrupts import sigint_held_back
-
-EXIT_RUN_FAILED = 1
-EXIT_INPUT_ERROR = 2
-EXIT_INTERRUPTED = 130
-DEFAULT_SCENARIO = "paper_stiffness_step"
-# The built-in scenarios (the YAML files of admittance.diagrams.scenarios), listed without
-# importing the scenario module (and Drake) for --help.
-_SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
-# The most timed runs `bench --repeat` takes (each one is a whole simulation).
-MAX_REPEAT = 100
+from admittance.diagrams.app.parser import (
+    EXIT_INPUT_ERROR,
+    EXIT_INTERRUPTED,
+    EXIT_RUN_FAILED,
+    MAX_REPEAT,
+    build_parser,
+)
 
 # The extension modules of Drake that the project imports (tests/test_layout.py checks the
 # list against the code). They load with Ctrl-C held back: their C++ initialization would
@@ -64,45 +61,6 @@ DRAKE_MODULES = (
     "pydrake.trajectories",
 )
 
-EXIT_STATUS = """\
-exit status:
-  0    done
-  1    the run failed (a simulation diverged, a worker process died); one line on stderr
-  2    bad input (a scenario key or value, a flag, a file, an --out folder); one line on
-       stderr, nothing written
-  130  interrupted (Ctrl-C or SIGTERM); one line on stderr, nothing half-written
-"""
-
-
-class _Parser(argparse.ArgumentParser):
-    """argparse that reports usage errors in one line with status 2."""
-
-    def error(self, message: str) -> None:  # noqa: D102
-        self.exit(EXIT_INPUT_ERROR, f"{self.prog}: error: {message}\n")
-
-
-def _builtin_names() -> list[str]:
-    return sorted(path.stem for path in _SCENARIO_DIR.glob("*.yaml"))
-
-
-def _add_common_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "scenario",
-        nargs="?",
-        default=DEFAULT_SCENARIO,
-        help=f"built-in name ({', '.join(_builtin_names())}) or a YAML path "
-        f"(default: {DEFAULT_SCENARIO})",
-    )
-    parser.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scenario key, e.g. --set wall.stiffness=2e4 (repeatable)",
-    )
-    parser.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
-
 
 def _error(message: str) -> None:
     print(f"admittance: error: {message}", file=sys.stderr)
@@ -110,8 +68,9 @@ def _error(message: str) -> None:
 
 def _arm_scenario(args: argparse.Namespace):
     """The arm scenario of `args`; a grasp scenario is refused with one line."""
-    from admittance.diagrams.grasp_scenario import GraspScenario
-    from admittance.diagrams.scenario import ScenarioError, load_scenario
+    from admittance.diagrams.scenario.files import load_scenario
+    from admittance.diagrams.scenario.planar_gripper import GraspScenario
+    from admittance.diagrams.scenario.schema import ScenarioError
 
     scenario = load_scenario(args.scenario, args.overrides)
     if isinstance(scenario, GraspScenario):
@@ -127,27 +86,19 @@ def _arm_scenario(args: argparse.Namespace):
 
 def _cmd_simulate(args: argparse.Namespace, progress) -> int:
     from admittance.diagrams.app.result_folder import check_output_dir, check_writable
-    from admittance.diagrams.grasp_scenario import GraspScenario
-    from admittance.diagrams.scenario import load_scenario
-    from admittance.diagrams.simulation import SimulationDivergedError
+    from admittance.diagrams.app.simulate import summary, write_results
+    from admittance.diagrams.run.engine import SimulationDivergedError
+    from admittance.diagrams.run.simulate import simulate
+    from admittance.diagrams.scenario.files import load_scenario
+    from admittance.diagrams.views.figures import write_replay
 
     scenario = load_scenario(args.scenario, args.overrides)
-    # The run, its result folder, summary and replay, by the scenario's kind.
-    if isinstance(scenario, GraspScenario):
-        from admittance.diagrams.app.grasp_results import grasp_summary as summary
-        from admittance.diagrams.app.grasp_results import write_grasp_results as write_results
-        from admittance.diagrams.grasp_replay import write_grasp_meshcat_replay as replay
-        from admittance.diagrams.grasp_simulation import run_grasp as run
-    else:
-        from admittance.diagrams.app.simulate import summary, write_results
-        from admittance.diagrams.simulation import run_scenario as run
-        from admittance.diagrams.visualization import write_meshcat_replay as replay
     out = Path(args.out) if args.out else Path("results") / scenario.name
     check_output_dir(out, overwrite=args.force)
     if args.meshcat_html:
         check_writable(args.meshcat_html, "--meshcat-html")
     try:
-        result = run(scenario, progress=progress.simulation(scenario.name, scenario.duration))
+        result = simulate(scenario, progress=progress.simulation(scenario.name, scenario.duration))
     except SimulationDivergedError as diverged:
         # Keep what was logged, marked failed (metrics.json: "failed": true).
         progress(f"writing the partial result to {out}/")
@@ -160,26 +111,23 @@ def _cmd_simulate(args: argparse.Namespace, progress) -> int:
     print(folder.describe(out))
     if args.meshcat_html:
         progress(f"writing the Meshcat replay {args.meshcat_html}")
-        print(f"wrote {replay(result, args.meshcat_html)} (Meshcat replay)")
+        print(f"wrote {write_replay(result, args.meshcat_html)} (Meshcat replay)")
     return 0
 
 
 def _cmd_diagram(args: argparse.Namespace, progress) -> int:
     from admittance.diagrams.app.result_folder import check_writable
-    from admittance.diagrams.closed_loop import BuildClosedLoop
-    from admittance.diagrams.grasp import BuildGrasp
-    from admittance.diagrams.grasp_scenario import GraspScenario
-    from admittance.diagrams.scenario import ScenarioError, load_scenario
-    from admittance.diagrams.visualization import write_diagram_picture
+    from admittance.diagrams.loop.build import BuildLoop
+    from admittance.diagrams.scenario.files import load_scenario
+    from admittance.diagrams.scenario.schema import ScenarioError
+    from admittance.diagrams.views.picture import write_diagram_picture
 
     scenario = load_scenario(args.scenario, args.overrides)
     suffix = Path(args.out).suffix.lower()
     if suffix not in (".svg", ".png", ".dot"):
         raise ScenarioError(f"--out {args.out}: unsupported picture format; use .svg, .png or .dot")
     check_writable(args.out)
-    grasp = isinstance(scenario, GraspScenario)
-    loop = BuildGrasp(scenario) if grasp else BuildClosedLoop(scenario)
-    print(f"wrote {write_diagram_picture(loop.diagram, args.out)}")
+    print(f"wrote {write_diagram_picture(BuildLoop(scenario).diagram, args.out)}")
     return 0
 
 
@@ -189,8 +137,8 @@ def _cmd_bench(args: argparse.Namespace, progress) -> int:
     from admittance.diagrams.app.bench import run_benchmark
     from admittance.diagrams.app.bench_report import format_benchmark, load_benchmark_report
     from admittance.diagrams.app.result_folder import atomic_write_text, check_writable
-    from admittance.diagrams.closed_loop import CheckScenarioStarts
-    from admittance.diagrams.scenario import ScenarioError
+    from admittance.diagrams.loop.planar_arm import CheckScenarioStarts
+    from admittance.diagrams.scenario.schema import ScenarioError
 
     if not 1 <= args.repeat <= MAX_REPEAT:
         raise ScenarioError(
@@ -219,7 +167,8 @@ def _cmd_bench(args: argparse.Namespace, progress) -> int:
 
 def _controller_kinds(text: str | None) -> list[str]:
     """The --controllers list, checked: known kinds, each once."""
-    from admittance.diagrams.scenario import CONTROLLER_KINDS, ScenarioError
+    from admittance.diagrams.scenario.planar_arm import CONTROLLER_KINDS
+    from admittance.diagrams.scenario.schema import ScenarioError
 
     if text is None:
         return list(CONTROLLER_KINDS)
@@ -243,7 +192,7 @@ def _cmd_compare(args: argparse.Namespace, progress) -> int:
     )
     from admittance.diagrams.app.formatting import number
     from admittance.diagrams.app.result_folder import check_output_dir
-    from admittance.diagrams.force_controllers import baseline_gains
+    from admittance.diagrams.robots.planar_arm import baseline_gains
 
     kinds = _controller_kinds(args.controllers)
     scenario = _arm_scenario(args)
@@ -264,7 +213,7 @@ def _cmd_compare(args: argparse.Namespace, progress) -> int:
 
 
 def _number_list(flag: str, text: str) -> list[float]:
-    from admittance.diagrams.scenario import ScenarioError
+    from admittance.diagrams.scenario.schema import ScenarioError
 
     try:
         return [float(item) for item in text.split(",") if item.strip()]
@@ -275,8 +224,9 @@ def _number_list(flag: str, text: str) -> list[float]:
 def _cmd_grasp_compare(args: argparse.Namespace, progress) -> int:
     from admittance.diagrams.app.grasp_compare import compare_grasps, format_grasp_table
     from admittance.diagrams.app.result_folder import check_output_dir, result_folder
-    from admittance.diagrams.grasp_scenario import GRASP_CONTROLLER_KINDS, GraspScenario
-    from admittance.diagrams.scenario import ScenarioError, load_scenario
+    from admittance.diagrams.scenario.files import load_scenario
+    from admittance.diagrams.scenario.planar_gripper import GRASP_CONTROLLER_KINDS, GraspScenario
+    from admittance.diagrams.scenario.schema import ScenarioError
 
     scenario = load_scenario(args.scenario, args.overrides)
     if not isinstance(scenario, GraspScenario):
@@ -315,7 +265,7 @@ def _cmd_stability(args: argparse.Namespace, progress) -> int:
         format_report,
         write_report,
     )
-    from admittance.diagrams.closed_loop import CheckScenarioStarts
+    from admittance.diagrams.loop.planar_arm import CheckScenarioStarts
 
     scenario = _arm_scenario(args)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_stability"
@@ -376,190 +326,16 @@ def _cmd_sweep(args: argparse.Namespace, progress) -> int:
 # --- the parser ---------------------------------------------------------------------------
 
 
-def _version() -> str:
-    """The installed distribution's version (one source: pyproject.toml)."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("optimal-admittance")
-    except PackageNotFoundError:  # pragma: no cover (running from an uninstalled tree)
-        return "unknown"
-
-
-def _subcommand(commands, name: str, help: str) -> argparse.ArgumentParser:
-    parser = commands.add_parser(
-        name,
-        help=help,
-        description=help[0].upper() + help[1:] + ".",
-        epilog=EXIT_STATUS,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    _add_common_arguments(parser)
-    return parser
-
-
-def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(
-        prog="admittance",
-        description="Optimal admittance control of a 3-DOF planar arm against a compliant "
-        "wall (Drake).",
-        epilog=EXIT_STATUS,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    parser.add_argument("--version", action="version", version=f"admittance {_version()}")
-    parser.add_argument(
-        "-q", "--quiet", dest="quiet_all", action="store_true", help="no progress lines on stderr"
-    )
-    commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-
-    simulate = _subcommand(commands, "simulate", "run one scenario headless, write results")
-    simulate.add_argument("--out", help="output folder (default: results/<scenario name>)")
-    simulate.add_argument("--force", action="store_true", help="replace an existing --out folder")
-    simulate.add_argument(
-        "--meshcat-html", metavar="FILE", help="also write a self-contained Meshcat replay"
-    )
-    simulate.set_defaults(handler=_cmd_simulate)
-
-    diagram = _subcommand(
-        commands, "diagram", "draw the closed loop's block diagram (Graphviz: .svg, .png or .dot)"
-    )
-    diagram.add_argument("--out", required=True, help="output file: .svg, .png or .dot")
-    diagram.set_defaults(handler=_cmd_diagram)
-
-    stability = _subcommand(
-        commands,
-        "stability",
-        "linearize the loop at its contact equilibrium: eigenvalues, Lyapunov certificate, "
-        "eq. 13, critical Gamma and stability maps",
-    )
-    stability.add_argument("--out", help="output folder (default: results/<scenario>_stability)")
-    stability.add_argument("--force", action="store_true", help="replace an existing --out folder")
-    stability.add_argument("--quick", action="store_true", help="coarse map grids")
-    stability.add_argument(
-        "--no-trajectory", action="store_true", help="skip V(t) along a simulated run"
-    )
-    stability.set_defaults(handler=_cmd_stability)
-
-    compare = _subcommand(
-        commands,
-        "compare",
-        "run every force controller (the paper's and the baselines) on one scenario: a table "
-        "and overlaid force plots",
-    )
-    compare.add_argument(
-        "--controllers", metavar="K,...", help="a comma list of controller.kind values (all)"
-    )
-    compare.add_argument("--workers", type=int, help="parallel runs (default: the cores)")
-    compare.add_argument("--out", help="output folder (default: results/<scenario>_compare)")
-    compare.add_argument("--force", action="store_true", help="replace an existing --out folder")
-    compare.set_defaults(handler=_cmd_compare)
-
-    grasp_compare = _subcommand(
-        commands,
-        "grasp-compare",
-        "a grasp with position-only fingers against the paper's law, over brick size and "
-        "contact stiffness errors: held, crushed or lost",
-    )
-    grasp_compare.set_defaults(scenario="grasp_hold")
-    grasp_compare.add_argument(
-        "--size-errors",
-        default="-0.002,0,0.002",
-        metavar="M,...",
-        help="brick.size_error values, m (default -0.002,0,0.002)",
-    )
-    grasp_compare.add_argument(
-        "--stiffness-errors",
-        default="0.1,1,10",
-        metavar="R,...",
-        help="brick.stiffness_error values (default 0.1,1,10)",
-    )
-    grasp_compare.add_argument(
-        "--controllers", metavar="K,...", help="pid_only,optimal_admittance (default both)"
-    )
-    grasp_compare.add_argument("--workers", type=int, help="parallel runs (default: the cores)")
-    grasp_compare.add_argument("--out", help="output folder (default: results/<scenario>_compare)")
-    grasp_compare.add_argument(
-        "--force", action="store_true", help="replace an existing --out folder"
-    )
-    grasp_compare.set_defaults(handler=_cmd_grasp_compare)
-
-    bench = _subcommand(
-        commands,
-        "bench",
-        "time a scenario (median of --repeat runs after a warm-up) against the bare plant's "
-        "floor; where the time goes",
-    )
-    bench.add_argument(
-        "--repeat", type=int, default=3, help=f"timed runs, 1 to {MAX_REPEAT} (default 3)"
-    )
-    bench.add_argument("--json", metavar="FILE", help="also write the report as JSON")
-    bench.add_argument(
-        "--before",
-        metavar="FILE",
-        help="the --json report of an earlier run of the same scenario (e.g. on the code "
-        "before a change), printed beside this one with its per-callback profile",
-    )
-    bench.set_defaults(handler=_cmd_bench)
-
-    sweep = _subcommand(
-        commands,
-        "sweep",
-        "run a grid or Monte Carlo over scenario keys in parallel: one table, summary plots; "
-        "an interrupted sweep resumes where it stopped",
-    )
-    sweep.add_argument(
-        "--grid",
-        action="append",
-        default=[],
-        metavar="KEY=SPEC",
-        help="sweep a key over 1e4,5e4,1e5 or linspace:A:B:N or logspace:A:B:N (repeatable: "
-        "the Cartesian product)",
-    )
-    sweep.add_argument(
-        "--random",
-        action="append",
-        default=[],
-        metavar="KEY=DIST",
-        help="draw a key from uniform:A:B, loguniform:A:B, normal:MEAN:STD, randint:A:B or "
-        "choice:a,b,c (repeatable; needs --samples)",
-    )
-    sweep.add_argument(
-        "--samples", type=int, metavar="N", help="Monte Carlo samples (per grid point)"
-    )
-    sweep.add_argument(
-        "--seed", type=int, default=0, metavar="S", help="seed of the draws (default 0)"
-    )
-    sweep.add_argument(
-        "--workers",
-        type=int,
-        metavar="N",
-        help="parallel processes (default: all cores, os.cpu_count())",
-    )
-    sweep.add_argument(
-        "--engine",
-        choices=("local", "dask"),
-        default="local",
-        help="local process pool (default) or a dask.distributed cluster (pip install -e .[dask])",
-    )
-    sweep.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        help="with --engine dask: the scheduler to use (default: start a LocalCluster)",
-    )
-    sweep.add_argument(
-        "--out",
-        required=True,
-        metavar="DIR",
-        help="sweep folder: points.jsonl (the resumable record), table.csv, summary.txt, PNG",
-    )
-    sweep.add_argument(
-        "--force", action="store_true", help="start over in a folder that holds another sweep"
-    )
-    sweep.set_defaults(handler=_cmd_sweep)
-    return parser
-
-
-# --- main ---------------------------------------------------------------------------------
+# Each subcommand's function, by its name on the command line.
+HANDLERS = {
+    "simulate": _cmd_simulate,
+    "diagram": _cmd_diagram,
+    "stability": _cmd_stability,
+    "compare": _cmd_compare,
+    "grasp-compare": _cmd_grasp_compare,
+    "bench": _cmd_bench,
+    "sweep": _cmd_sweep,
+}
 
 
 def _interrupted() -> int:
@@ -595,8 +371,8 @@ def _run(args: argparse.Namespace) -> int:
         completed_folders,
     )
     from admittance.diagrams.app.sweep.runner import WorkerDiedError
-    from admittance.diagrams.scenario import ScenarioError
-    from admittance.diagrams.visualization import DiagramPictureError
+    from admittance.diagrams.scenario.schema import ScenarioError
+    from admittance.diagrams.views.picture import DiagramPictureError
 
     completed_folders.clear()
     progress = Progress(args.command, quiet=args.quiet or args.quiet_all)
@@ -617,7 +393,7 @@ def _run(args: argparse.Namespace) -> int:
 def main(argv: list[str] | None = None) -> int:
     """Runs the command line; returns the exit status (0, 1, 2 or 130)."""
     try:
-        args = build_parser().parse_args(argv)
+        args = build_parser(HANDLERS).parse_args(argv)
         return _run(args)
     except KeyboardInterrupt:
         return _interrupted()

@@ -1,7 +1,7 @@
 """Every force controller on the same scenario, side by side (``admittance compare``).
 
 Each controller of ``CONTROLLER_KINDS`` runs the scenario with only ``controller.kind``
-changed (baselines tuned by the matched rule of diagrams/force_controllers.py): a one-axis
+changed (baselines tuned by the matched rule of diagrams/robots/planar_arm.py): a one-axis
 study over ``controller.kind``, defined and validated as a sweep's points and run in
 parallel by the sweep's runner (diagrams/app/sweep/runner.py: its worker processes and
 Ctrl-C handling). The result folder (written atomically) holds:
@@ -40,9 +40,11 @@ from admittance.diagrams.app.sweep.runner import (
     sigterm_interrupts,
     simulate_point,
 )
-from admittance.diagrams.closed_loop import CheckScenarioStarts
-from admittance.diagrams.scenario import CONTROLLER_KINDS, Scenario, load_scenario, scenario_to_yaml
-from admittance.diagrams.simulation import SETTLE_BAND, settling_columns
+from admittance.diagrams.loop.planar_arm import CheckScenarioStarts
+from admittance.diagrams.run.metrics import SETTLE_BAND
+from admittance.diagrams.run.planar_arm import settling_columns
+from admittance.diagrams.scenario.files import load_scenario, scenario_to_yaml
+from admittance.diagrams.scenario.planar_arm import CONTROLLER_KINDS, Scenario
 
 __all__ = ["ControllerRun", "compare_controllers", "format_table", "write_comparison"]
 
@@ -74,10 +76,10 @@ def _verdict(metrics: dict, force_reference: float) -> str:
     return "tracks Fr"
 
 
-def _row(kind: str, metrics: dict, force_reference: float) -> dict:
+def table_row(kind: str, metrics: dict, force_reference: float) -> dict:
     row = {
         "controller": kind,
-        # N: overall, and after the first contact transient (metrics of simulation.py).
+        # N: overall, and after the first contact transient (metrics of run.planar_arm).
         "peak_force": metrics.get("peak_force"),
         "peak_after_transient": metrics.get("peak_force_after_first_contact_transient"),
         "rms_error": metrics.get("rms_force_error"),
@@ -107,7 +109,7 @@ def _run_controller(task: dict) -> ControllerRun:
     if run.failed:
         metrics.update(failed=True, failure=run.failure)
     force_reference = run.force_reference if run.force_reference is not None else math.nan
-    controller_run = ControllerRun(kind, _row(kind, metrics, force_reference), metrics)
+    controller_run = ControllerRun(kind, table_row(kind, metrics, force_reference), metrics)
     if run.series is not None:
         controller_run.time = run.series["time"]
         controller_run.force = run.series["force"]
@@ -232,7 +234,7 @@ def write_comparison(
     scenario: Scenario, runs: list[ControllerRun], out_dir: str | Path, overwrite: bool
 ) -> ResultFolder:
     """Writes table.txt, table.csv, metrics.json, scenario.yaml and force.png atomically."""
-    from admittance.diagrams.force_controllers import baseline_gains
+    from admittance.diagrams.robots.planar_arm import baseline_gains
 
     report = {
         "scenario": scenario.name,

@@ -3,7 +3,7 @@
 Each point is one grasp scenario with ``brick.size_error`` and ``brick.stiffness_error``
 set and ``controller.kind`` either ``pid_only`` (the fingers on the plan that closes on the
 nominal brick) or ``optimal_admittance``; everything else is the base scenario's. The
-verdict of each run (held, crushed, lost) is grasp_simulation's. The points run in worker
+verdict of each run (held, crushed, lost) is run.planar_gripper's. The points run in worker
 processes by the application's runner (diagrams/app/sweep/runner.py: ``simulate_point``
 for one run, ``run_tasks`` for the pool and Ctrl-C), as ``admittance compare`` and
 ``admittance sweep`` do; a run that fails is a row marked failed, not an exception.
@@ -21,8 +21,9 @@ from admittance.diagrams.app.sweep.runner import (
     sigterm_interrupts,
     simulate_point,
 )
-from admittance.diagrams.grasp_scenario import FINGERS, GRASP_CONTROLLER_KINDS
-from admittance.diagrams.scenario import ScenarioError, load_scenario
+from admittance.diagrams.scenario.files import load_scenario
+from admittance.diagrams.scenario.planar_gripper import FINGERS, GRASP_CONTROLLER_KINDS
+from admittance.diagrams.scenario.schema import ScenarioError
 
 __all__ = [
     "DEFAULT_SIZE_ERRORS",

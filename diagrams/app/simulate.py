@@ -1,8 +1,10 @@
-"""`admittance simulate`: a run's result folder and its summary for the terminal.
+"""`admittance simulate`: a run's result folder and its summary for the terminal, for
+every robot.
 
-The folder holds timeseries.csv, metrics.json, scenario.yaml and the paper's figures; it is
-written into a temporary sibling folder and moved into place at the end, so a folder either
-holds a complete result or is left as it was.
+The folder holds timeseries.csv, metrics.json, scenario.yaml and the result's figures (the
+paper's Fig. 5-7 for the arm, the forces and the brick for the gripper); it is written into
+a temporary sibling folder and moved into place at the end, so a folder either holds a
+complete result or is left as it was.
 """
 
 from __future__ import annotations
@@ -13,18 +15,12 @@ import numpy as np
 
 from admittance.diagrams.app.formatting import number, seconds
 from admittance.diagrams.app.result_folder import ResultFolder, result_folder
-from admittance.diagrams.plots import plot_errors, plot_force, plot_reference
-from admittance.diagrams.scenario import scenario_to_yaml
-from admittance.diagrams.simulation import SimulationResult
+from admittance.diagrams.run.planar_arm import SimulationResult
+from admittance.diagrams.run.planar_gripper import GraspResult, grasp_verdict_line
+from admittance.diagrams.scenario.files import scenario_to_yaml
+from admittance.diagrams.views.figures import result_figures
 
-__all__ = ["FIGURES", "summary", "write_results"]
-
-# The paper's figures of a run, by file name.
-FIGURES = {
-    "fig5_errors.png": plot_errors,
-    "fig6_reference.png": plot_reference,
-    "fig7_force.png": plot_force,
-}
+__all__ = ["summary", "write_results"]
 
 
 def _write_timeseries(result: SimulationResult, path: Path) -> None:
@@ -34,17 +30,19 @@ def _write_timeseries(result: SimulationResult, path: Path) -> None:
 
 
 def write_results(
-    result: SimulationResult,
+    result: SimulationResult | GraspResult,
     out_dir: str | Path,
     overwrite: bool = True,
     *,
-    figures: dict = FIGURES,
+    figures: dict | None = None,
 ) -> ResultFolder:
     """Writes a complete result folder atomically; returns what it wrote.
 
-    `figures` maps a file name to a function of the result that returns its axes (a grasp
-    passes its own; any result with ``columns()``, ``metrics`` and ``scenario`` is written).
+    `figures` maps a file name to a function of the result that returns its axes (default:
+    the result's own, views.result_figures); any result with ``columns()``, ``metrics`` and
+    ``scenario`` is written.
     """
+    figures = result_figures(result) if figures is None else figures
     with result_folder(out_dir, overwrite=overwrite) as folder:
         folder.write_with("timeseries.csv", lambda path: _write_timeseries(result, path))
         folder.write_json("metrics.json", result.metrics)
@@ -54,8 +52,10 @@ def write_results(
     return folder
 
 
-def summary(result: SimulationResult) -> str:
+def summary(result: SimulationResult | GraspResult) -> str:
     """A few lines for the terminal."""
+    if isinstance(result, GraspResult):
+        return _grasp_summary(result)
     m = result.metrics
     lines = [
         f"scenario {result.scenario.name}: {number(float(result.time[-1]), ' s')} simulated in "
@@ -73,5 +73,31 @@ def summary(result: SimulationResult) -> str:
             f"  {event['kind']} at {number(event['time'], ' s')}: settles (5 %) in "
             f"{number(event['settling_time'], ' s')}, "
             f"peak after {number(event['peak_force_after'], ' N')}"
+        )
+    return "\n".join(lines)
+
+
+def _grasp_summary(result: GraspResult) -> str:
+    """A few lines for the terminal."""
+    m = result.metrics
+    rtf = m["real_time_factor"]
+    lines = [
+        f"scenario {result.scenario.name}: {result.time[-1]:.3g} s simulated in "
+        f"{m['wall_time']:.2f} s (real-time factor {rtf:.3g}), {m['steps']} steps",
+        f"  {grasp_verdict_line(result)}",
+    ]
+    for finger in m["fingers"]:
+        lines.append(
+            f"  {finger['finger']}: Fr {finger['force_reference']:g} N, final "
+            f"{finger['final_mean_force']:.3g} N, peak after ramp "
+            f"{finger['peak_force_after_ramp']:.3g} N, slip {1e3 * finger['slip']:.3g} mm"
+        )
+    if "disturbance" in m:
+        d = m["disturbance"]
+        recovery = "n/a" if d["recovery_time"] is None else f"{d['recovery_time']:.3g} s"
+        peaks = ", ".join(f"{p:.3g}" for p in d["peak_force"])
+        lines.append(
+            f"  {d['kind']} at {d['start']:g} s: peak forces ({peaks}) N, contact kept "
+            f"{d['contact_kept']}, back within 5 % in {recovery}"
         )
     return "\n".join(lines)

@@ -10,13 +10,12 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
-from admittance.diagrams.app.formatting import number
-from admittance.diagrams.app.result_folder import ResultFolder, result_folder
-from admittance.diagrams.linearization import FindContactEquilibrium, LinearizeAtEquilibrium
-from admittance.diagrams.safety_stability import edge_confirmations, unstable_points
-from admittance.diagrams.scenario import Scenario
-from admittance.diagrams.simulation import run_scenario
-from admittance.diagrams.stability import (
+from admittance.diagrams.analysis.linearization import (
+    FindContactEquilibrium,
+    LinearizeAtEquilibrium,
+)
+from admittance.diagrams.analysis.safety_margins import edge_confirmations, unstable_points
+from admittance.diagrams.analysis.stability import (
     critical_gamma,
     linear_versus_nonlinear,
     lyapunov_along_trajectory,
@@ -27,6 +26,10 @@ from admittance.diagrams.stability import (
     symbolic_eq13,
     with_values,
 )
+from admittance.diagrams.app.formatting import number
+from admittance.diagrams.app.result_folder import ResultFolder, result_folder
+from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.scenario.planar_arm import Scenario
 
 __all__ = ["MapAxes", "StabilityReport", "analyse", "write_report"]
 

@@ -22,13 +22,8 @@ from admittance.diagrams.app.sweep.specs import (
     parse_grid,
     parse_random,
 )
-from admittance.diagrams.scenario import (
-    SCENARIO_DIR,
-    ScenarioError,
-    builtin_scenario_names,
-    load_scenario,
-    parse_overrides,
-)
+from admittance.diagrams.scenario.files import SCENARIO_DIR, builtin_scenario_names, load_scenario
+from admittance.diagrams.scenario.schema import ScenarioError, parse_overrides
 
 __all__ = ["SweepDefinition", "SweepPoint", "define_sweep"]
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from admittance.diagrams.app.result_folder import atomic_write_text, json_safe
 from admittance.diagrams.app.sweep.runner import simulate_point
-from admittance.diagrams.simulation import settling_columns
+from admittance.diagrams.run.planar_arm import settling_columns
 
 __all__ = [
     "SCALAR_METRICS",

@@ -32,7 +32,8 @@ import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
 
 from admittance.diagrams.app.interrupts import sigint_held_back
-from admittance.diagrams.scenario import ScenarioError, load_scenario
+from admittance.diagrams.scenario.files import load_scenario
+from admittance.diagrams.scenario.schema import ScenarioError
 
 __all__ = [
     "ENGINES",
@@ -93,9 +94,10 @@ def simulate_point(
     a failed PointRun: SimulationDivergedError (with the partial run's metrics and series),
     and ScenarioError or RuntimeError (the scenario cannot start, Drake refuses it).
     """
-    from admittance.diagrams.grasp_scenario import GraspScenario
-    from admittance.diagrams.grasp_simulation import run_grasp
-    from admittance.diagrams.simulation import SimulationDivergedError, run_scenario
+    from admittance.diagrams.run.engine import SimulationDivergedError
+    from admittance.diagrams.run.planar_arm import run_scenario
+    from admittance.diagrams.run.planar_gripper import run_grasp
+    from admittance.diagrams.scenario.planar_gripper import GraspScenario
 
     start = time.perf_counter()
     force_reference = None

@@ -9,7 +9,7 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from admittance.diagrams.scenario import ScenarioError, parse_value
+from admittance.diagrams.scenario.schema import ScenarioError, parse_value
 
 __all__ = [
     "GRID_FORMS",

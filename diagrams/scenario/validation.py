@@ -18,13 +18,9 @@ import typing
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 
-from admittance.diagrams.scenario import (
-    CONTROLLER_KINDS,
-    FAULT_KINDS,
-    INTEGRATION_SCHEMES,
-    Scenario,
-    ScenarioError,
-)
+from admittance.diagrams.scenario.planar_arm import CONTROLLER_KINDS, Scenario
+from admittance.diagrams.scenario.schema import INTEGRATION_SCHEMES, ScenarioError
+from admittance.diagrams.scenario.sections import FAULT_KINDS
 
 __all__ = ["MAX_SEED", "MAX_STIFFNESS", "PID_GAINS", "RANGES", "Range", "validate"]
 
@@ -94,7 +90,7 @@ RANGES: dict[str, Range] = {
     "wall.stiffness": Range(f"(0, {MAX_STIFFNESS:g}]", "N/m"),
     "wall.velocity": Range("[-1, 1]", "m/s"),
     "wall.motion_start": Range(">= 0", "s"),
-    # The joint velocity limits bound it further (closed_loop.CheckTrajectoryReachable).
+    # The joint velocity limits bound it further (loop.planar_arm.CheckTrajectoryReachable).
     "trajectory.frequency": Range("[0, 100]", "Hz"),
     "admittance.gamma": Range("(0, 0.1]"),
     "admittance.alpha": Range("[0, 10]", "s"),
@@ -140,20 +136,20 @@ PID_GAINS: dict[str, Range] = {
 }
 
 
-def _require(condition: bool, key: str, allowed: str, value) -> None:
+def require(condition: bool, key: str, allowed: str, value) -> None:
     if not condition:
         raise ScenarioError(f"{key}: must be {allowed}, got {value!r}")
 
 
-def _require_one_of(value, key: str, choices: typing.Sequence[str]) -> None:
-    _require(value in choices, key, "one of " + ", ".join(choices), value)
+def require_one_of(value, key: str, choices: typing.Sequence[str]) -> None:
+    require(value in choices, key, "one of " + ", ".join(choices), value)
 
 
-def _require_range(value, key: str, allowed: Range) -> None:
-    _require(allowed.allows(value), key, allowed.allowed(), value)
+def require_range(value, key: str, allowed: Range) -> None:
+    require(allowed.allows(value), key, allowed.allowed(), value)
 
 
-def _value_of(scenario: Scenario, key: str):
+def value_of(scenario: Scenario, key: str):
     value = scenario
     for part in key.split("."):
         value = getattr(value, part)
@@ -164,23 +160,23 @@ def _check_lists(s: Scenario) -> None:
     """Lists of numbers: their lengths and values."""
     finite = math.isfinite
     t = s.trajectory
-    _require(len(t.center) == 3, "trajectory.center", "3 values (x, y, theta)", t.center)
-    _require(all(map(finite, t.center)), "trajectory.center", "finite", t.center)
-    _require(len(t.amplitude) == 3, "trajectory.amplitude", "3 values", t.amplitude)
-    _require(all(map(finite, t.amplitude)), "trajectory.amplitude", "finite", t.amplitude)
+    require(len(t.center) == 3, "trajectory.center", "3 values (x, y, theta)", t.center)
+    require(all(map(finite, t.center)), "trajectory.center", "finite", t.center)
+    require(len(t.amplitude) == 3, "trajectory.amplitude", "3 values", t.amplitude)
+    require(all(map(finite, t.amplitude)), "trajectory.amplitude", "finite", t.amplitude)
     for name, allowed in PID_GAINS.items():
         gains = getattr(s.pid, name)
         key = f"pid.{name}"
-        _require(len(gains) == 3, key, "3 values (x, y, theta)", gains)
-        _require(all(map(allowed.allows, gains)), key, allowed.allowed(), gains)
+        require(len(gains) == 3, key, "3 values (x, y, theta)", gains)
+        require(all(map(allowed.allows, gains)), key, allowed.allowed(), gains)
     r = s.arm
-    _require(
+    require(
         len(r.joint_guess) > 0 and all(map(finite, r.joint_guess)),
         "arm.joint_guess",
         "finite joint angles",
         r.joint_guess,
     )
-    _require(
+    require(
         len(r.initial_position) in (0, 3) and all(map(finite, r.initial_position)),
         "arm.initial_position",
         "empty or 3 finite values (x, y, theta)",
@@ -194,8 +190,8 @@ def _check_entries(s: Scenario) -> None:
     previous = 0.0
     for i, step in enumerate(s.wall.stiffness_steps):
         key = f"wall.stiffness_steps[{i}]"
-        _require_range(step.stiffness, key + ".stiffness", RANGES["wall.stiffness"])
-        _require(
+        require_range(step.stiffness, key + ".stiffness", RANGES["wall.stiffness"])
+        require(
             finite(step.time) and step.time >= previous,
             key + ".time",
             ">= 0 s and not before the previous step",
@@ -204,52 +200,50 @@ def _check_entries(s: Scenario) -> None:
         previous = step.time
     for i, fault in enumerate(s.faults):
         key = f"faults[{i}]"
-        _require_one_of(fault.kind, key + ".kind", FAULT_KINDS)
-        _require(finite(fault.start) and fault.start >= 0, key + ".start", ">= 0 s", fault.start)
-        _require(finite(fault.end) and fault.end > fault.start, key + ".end", "> start", fault.end)
-        _require(finite(fault.value), key + ".value", "finite", fault.value)
+        require_one_of(fault.kind, key + ".kind", FAULT_KINDS)
+        require(finite(fault.start) and fault.start >= 0, key + ".start", ">= 0 s", fault.start)
+        require(finite(fault.end) and fault.end > fault.start, key + ".end", "> start", fault.end)
+        require(finite(fault.value), key + ".value", "finite", fault.value)
         if fault.kind == "stiffness_jump":
-            _require(
+            require(
                 0 < fault.value <= MAX_STIFFNESS,
                 key + ".value",
                 f"in (0, {MAX_STIFFNESS:g}] N/m for stiffness_jump",
                 fault.value,
             )
         if fault.kind == "wall_retract":
-            _require(
-                fault.value > 0, key + ".value", "> 0 m (the wall moves away, +x)", fault.value
-            )
+            require(fault.value > 0, key + ".value", "> 0 m (the wall moves away, +x)", fault.value)
         if fault.kind == "sensor_saturated":
-            _require(fault.value > 0, key + ".value", "> 0 N (the full-scale reading)", fault.value)
+            require(fault.value > 0, key + ".value", "> 0 N (the full-scale reading)", fault.value)
 
 
 def _check_choices(s: Scenario) -> None:
     """Keys that name one of a few things, and the URDF file."""
-    _require_one_of(s.controller.kind, "controller.kind", CONTROLLER_KINDS)
-    _require(
+    require_one_of(s.controller.kind, "controller.kind", CONTROLLER_KINDS)
+    require(
         s.controller.tuning in ("matched", "manual"),
         "controller.tuning",
         "'matched' or 'manual'",
         s.controller.tuning,
     )
-    _require(
+    require(
         s.sensor.kind in ("ideal", "flexiforce"),
         "sensor.kind",
         "'ideal' or 'flexiforce'",
         s.sensor.kind,
     )
-    _require(s.arm.urdf_path().is_file(), "arm.urdf", "an existing URDF file", s.arm.urdf)
+    require(s.arm.urdf_path().is_file(), "arm.urdf", "an existing URDF file", s.arm.urdf)
     _check_urdf(s.arm)
-    _require(
+    require(
         s.name not in ("", ".", "..") and not _NOT_IN_A_NAME.search(s.name),
         "name",
         "a file name (results/<name> is the default --out)",
         s.name,
     )
-    _require_one_of(
+    require_one_of(
         s.simulator.integration_scheme, "simulator.integration_scheme", INTEGRATION_SCHEMES
     )
-    _require(s.simulator.start_time == 0.0, "simulator.start_time", "0", s.simulator.start_time)
+    require(s.simulator.start_time == 0.0, "simulator.start_time", "0", s.simulator.start_time)
 
 
 # A scenario's name is a folder name: no separator, no control character.
@@ -302,10 +296,8 @@ def _check_urdf(arm) -> None:
 def _check_relations(s: Scenario) -> None:
     """Checks that relate two keys (each key alone is valid by now)."""
     w, a = s.wall, s.admittance
-    _require(
-        w.motion_end >= w.motion_start, "wall.motion_end", ">= wall.motion_start", w.motion_end
-    )
-    _require(
+    require(w.motion_end >= w.motion_start, "wall.motion_end", ">= wall.motion_start", w.motion_end)
+    require(
         a.max_force > s.force_reference,
         "admittance.max_force",
         f"> force_reference ({s.force_reference:g} N), or .inf for no bound",
@@ -314,7 +306,7 @@ def _check_relations(s: Scenario) -> None:
     if a.enabled:
         # Past max_push only the PID's slow integral could add force: Fr would not be reached.
         needed = s.force_reference / s.pid.kp[0]
-        _require(
+        require(
             a.max_push > needed,
             "admittance.max_push",
             f"> force_reference / pid.kp[0] = {needed:.3g} m (the PID's push at the bound, "
@@ -326,14 +318,14 @@ def _check_relations(s: Scenario) -> None:
         from admittance.systems.flexiforce import FlexiForceSensor
 
         full_scale = FlexiForceSensor().saturation_force
-        _require(
+        require(
             s.force_reference < 0.9 * full_scale,
             "force_reference",
             f"< {0.9 * full_scale:.4g} N with sensor.kind=flexiforce (90 % of the A201's "
             f"{full_scale:.4g} N full scale)",
             s.force_reference,
         )
-        _require(
+        require(
             not math.isfinite(a.max_force) or a.max_force < full_scale,
             "admittance.max_force",
             f"< {full_scale:.4g} N with sensor.kind=flexiforce (a bound the A201 cannot read "
@@ -346,20 +338,20 @@ def _check_safety(s: Scenario) -> None:
     """What the safety layer needs of the rest of the scenario (safety.enabled)."""
     if not s.safety.enabled:
         return
-    _require(
+    require(
         s.controller_kind == "optimal_admittance",
         "safety.enabled",
         "used with the paper's controller (controller.kind optimal_admittance, "
         "admittance.enabled true)",
         s.safety.enabled,
     )
-    _require(
+    require(
         math.isfinite(s.admittance.max_force),
         "admittance.max_force",
         "finite with safety.enabled (the layer keeps the force under it)",
         s.admittance.max_force,
     )
-    _require(
+    require(
         s.admittance.period == 0 and s.pid.period == 0,
         "safety.enabled",
         "used with the continuous controller (admittance.period and pid.period 0)",
@@ -370,7 +362,7 @@ def _check_safety(s: Scenario) -> None:
 def validate(scenario: Scenario) -> Scenario:
     """Checks every key of `scenario`; raises ScenarioError naming the first bad key."""
     for key, allowed in RANGES.items():
-        _require_range(_value_of(scenario, key), key, allowed)
+        require_range(value_of(scenario, key), key, allowed)
     _check_lists(scenario)
     _check_entries(scenario)
     _check_choices(scenario)

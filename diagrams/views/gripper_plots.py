@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import matplotlib.pyplot as plt
 
-from admittance.diagrams.grasp_scenario import FINGERS
-from admittance.diagrams.grasp_simulation import DROP_LIMIT, GraspResult
+from admittance.diagrams.run.planar_gripper import DROP_LIMIT, GraspResult
+from admittance.diagrams.scenario.planar_gripper import FINGERS
 
-__all__ = ["plot_grasp"]
+__all__ = [
+    "plot_grasp",
+]
 
 
 def plot_grasp(result: GraspResult, axes=None):

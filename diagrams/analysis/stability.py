@@ -6,7 +6,7 @@ impedance model of eq. 5 and the arm, PID and sensor dynamics are ignored. Here:
 * `symbolic_eq13` re-derives eq. 12-13 with pydrake.symbolic for the corrected sign of
   eq. 10 (and shows the printed sign makes V grow);
 * `modal_summary` and `lyapunov_certificate` read the linearized full loop (Linearize at the
-  contact equilibrium, diagrams/linearization.py): eigenvalues, time constants, damping,
+  contact equilibrium, diagrams/analysis/linearization.py): eigenvalues, time constants, damping,
   and P > 0 from A^T P + P A = -Q (RealContinuousLyapunovEquation);
 * `linear_versus_nonlinear` checks the linear model against the nonlinear diagram on a
   small step of Fr;
@@ -35,15 +35,17 @@ from pydrake.systems.analysis import (
 from pydrake.systems.framework import DiagramBuilder, EventStatus, InputPortIndex
 from pydrake.systems.primitives import Linearize
 
-from admittance.diagrams.closed_loop import WALL_NORMAL_AXIS, AddScenarioArm, BuildClosedLoop
-from admittance.diagrams.linearization import (
+from admittance.diagrams.analysis.linearization import (
     FindContactEquilibrium,
     LinearizeAtEquilibrium,
     static_scenario,
 )
-from admittance.diagrams.scenario import Scenario, ScenarioError, scenario_keys
-from admittance.diagrams.scenario_validation import validate
-from admittance.diagrams.simulation import SimulationResult
+from admittance.diagrams.loop.planar_arm import WALL_NORMAL_AXIS, BuildClosedLoop
+from admittance.diagrams.robots.planar_arm import AddScenarioArm
+from admittance.diagrams.run.planar_arm import SimulationResult
+from admittance.diagrams.scenario.planar_arm import Scenario
+from admittance.diagrams.scenario.schema import ScenarioError, scenario_keys
+from admittance.diagrams.scenario.validation import validate
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
 __all__ = [
@@ -159,7 +161,7 @@ def lyapunov_certificate(A: np.ndarray, Q: np.ndarray | None = None) -> dict:
 def with_values(scenario: Scenario, values: dict) -> Scenario:
     """A validated copy of `scenario` with dotted keys set (e.g. {"admittance.gamma": 2e-5})."""
     varied = copy.deepcopy(scenario)
-    valid = scenario_keys()
+    valid = scenario_keys(Scenario)
     for key, value in values.items():
         if key not in valid:
             raise ScenarioError(f"{key}: unknown scenario key")

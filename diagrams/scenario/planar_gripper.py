@@ -17,26 +17,27 @@ import math
 import typing
 from dataclasses import dataclass, field
 
-from pydrake.common.yaml import yaml_load_typed
 from pydrake.systems.analysis import SimulatorConfig
 
-from admittance.diagrams.scenario import (
+from admittance.diagrams.scenario.schema import (
     INTEGRATION_SCHEMES,
-    _check_tree,
-    _coerce_numbers,
-    _dump,
-    _set_dotted,
-    _unknown_key_error,
-    parse_overrides,
-    scenario_keys,
+    load_typed,
 )
-from admittance.diagrams.scenario_validation import (
+from admittance.diagrams.scenario.sections import (
+    AdmittanceSection,
+    ControllerSection,
+    LoggingConfig,
+    PidSection,
+    SensorSection,
+    implicit_simulator_config,
+)
+from admittance.diagrams.scenario.validation import (
     RANGES,
     Range,
-    _require,
-    _require_one_of,
-    _require_range,
-    _value_of,
+    require,
+    require_one_of,
+    require_range,
+    value_of,
 )
 
 __all__ = [
@@ -90,7 +91,7 @@ class GraspPlanConfig:
 
 
 @dataclass
-class GraspControllerConfig:
+class GraspControllerConfig(ControllerSection):
     # optimal_admittance (the paper's law on every finger) or pid_only (position-only
     # fingers on the plan, which presses each planned face by Fr / contact.stiffness, the
     # paper's eq. 6 on the planned brick).
@@ -98,7 +99,7 @@ class GraspControllerConfig:
 
 
 @dataclass
-class GraspAdmittanceConfig:
+class GraspAdmittanceConfig(AdmittanceSection):
     # Gamma of eq. 10 on each finger's normal axis (K is the finger's pid.kp[0]).
     gamma: float = 1.0e-5
     # alpha of eq. 7 and 10, s. Sampled at time_step, alpha passes each force sample
@@ -113,7 +114,7 @@ class GraspAdmittanceConfig:
 
 
 @dataclass
-class GraspPidConfig:
+class GraspPidConfig(PidSection):
     # Each finger's tip PID gains on (normal, tangent) of its face, eq. 14 (the paper's
     # x-y simulation values).
     kp: list[float] = field(default_factory=lambda: [2500.0, 2500.0])
@@ -122,7 +123,7 @@ class GraspPidConfig:
 
 
 @dataclass
-class GraspSensorConfig:
+class GraspSensorConfig(SensorSection):
     # "ideal" (the contact engine's force) or "flexiforce" (A201 + op-amp + filter + noise),
     # read by the ADC once per time_step.
     kind: str = "flexiforce"
@@ -150,15 +151,7 @@ class GraspDisturbanceConfig:
 def _default_simulator_config() -> SimulatorConfig:
     # Used only with time_step = 0 (a continuous plant and controllers): the contact and
     # the 5 kHz sensor filter make the loop stiff, so an implicit integrator.
-    return SimulatorConfig(
-        integration_scheme="radau3", accuracy=1e-4, max_step_size=0.01, use_error_control=True
-    )
-
-
-@dataclass
-class GraspLoggingConfig:
-    # Logging period, s (0 = every time_step).
-    period: float = 0.0
+    return implicit_simulator_config(max_step_size=0.01)
 
 
 @dataclass
@@ -184,7 +177,7 @@ class GraspScenario:
     sensor: GraspSensorConfig = field(default_factory=GraspSensorConfig)
     disturbance: GraspDisturbanceConfig = field(default_factory=GraspDisturbanceConfig)
     simulator: SimulatorConfig = field(default_factory=_default_simulator_config)
-    logging: GraspLoggingConfig = field(default_factory=GraspLoggingConfig)
+    logging: LoggingConfig = field(default_factory=LoggingConfig)
     # Name of the scenario (informational).
     name: str = "custom_grasp"
 
@@ -204,7 +197,7 @@ class GraspScenario:
 
 
 # Every key that is one number in a range, in the order they are checked (the arm's
-# scenario_validation.Range: the message states the range as written here).
+# validation.Range: the message states the range as written here).
 GRASP_RANGES: dict[str, Range] = {
     "duration": Range("(0, 1e4]", "s"),
     "seed": RANGES["seed"],
@@ -249,11 +242,11 @@ def validate_grasp(scenario: GraspScenario) -> GraspScenario:
     The ranges of GRASP_RANGES first, then lists, choices, and the checks that relate keys.
     """
     s = scenario
-    _require(s.kind == "grasp", "kind", "'grasp' for a grasp scenario", s.kind)
+    require(s.kind == "grasp", "kind", "'grasp' for a grasp scenario", s.kind)
     for key, allowed in GRASP_RANGES.items():
-        _require_range(_value_of(s, key), key, allowed)
+        require_range(value_of(s, key), key, allowed)
     # Lists.
-    _require(
+    require(
         len(s.force_reference) == len(FINGERS)
         and all(math.isfinite(f) and 0 < f <= 50 for f in s.force_reference),
         "force_reference",
@@ -262,29 +255,29 @@ def validate_grasp(scenario: GraspScenario) -> GraspScenario:
     )
     for name, allowed in GRASP_PID_GAINS.items():
         gains = getattr(s.pid, name)
-        _require(
+        require(
             len(gains) == 2 and all(map(allowed.allows, gains)),
             f"pid.{name}",
             allowed.allowed(),
             gains,
         )
     d = s.disturbance
-    _require(
+    require(
         len(d.force) == 2 and all(math.isfinite(f) and abs(f) <= 20 for f in d.force),
         "disturbance.force",
         "2 values (world y, world z) within [-20, 20] N",
         d.force,
     )
     # Choices.
-    _require_one_of(s.controller.kind, "controller.kind", GRASP_CONTROLLER_KINDS)
-    _require_one_of(s.sensor.kind, "sensor.kind", ("ideal", "flexiforce"))
-    _require_one_of(d.kind, "disturbance.kind", GRASP_DISTURBANCE_KINDS)
-    _require_one_of(
+    require_one_of(s.controller.kind, "controller.kind", GRASP_CONTROLLER_KINDS)
+    require_one_of(s.sensor.kind, "sensor.kind", ("ideal", "flexiforce"))
+    require_one_of(d.kind, "disturbance.kind", GRASP_DISTURBANCE_KINDS)
+    require_one_of(
         s.simulator.integration_scheme, "simulator.integration_scheme", INTEGRATION_SCHEMES
     )
     # Keys that depend on others.
-    _require(s.simulator.start_time == 0.0, "simulator.start_time", "0", s.simulator.start_time)
-    _require(
+    require(s.simulator.start_time == 0.0, "simulator.start_time", "0", s.simulator.start_time)
+    require(
         s.true_contact_stiffness <= MAX_CONTACT_STIFFNESS,
         "brick.stiffness_error",
         f"<= {MAX_CONTACT_STIFFNESS / s.contact.stiffness:.3g} with contact.stiffness = "
@@ -292,13 +285,13 @@ def validate_grasp(scenario: GraspScenario) -> GraspScenario:
         "N/m)",
         s.brick.stiffness_error,
     )
-    _require(
+    require(
         s.force_ramp_end < s.duration,
         "duration",
         f"> plan.close_time + plan.force_ramp_time = {s.force_ramp_end:g} s",
         s.duration,
     )
-    _require(
+    require(
         d.kind == "none" or (math.isfinite(d.start) and 0 <= d.start < s.duration),
         "disturbance.start",
         f"in [0, duration = {s.duration:g}) s",
@@ -306,14 +299,14 @@ def validate_grasp(scenario: GraspScenario) -> GraspScenario:
     )
     if s.controller.kind == "optimal_admittance":
         needed = max(s.force_reference) / s.pid.kp[0]
-        _require(
+        require(
             s.admittance.max_push > needed,
             "admittance.max_push",
             f"> max(force_reference) / pid.kp[0] = {needed:.3g} m (the PID's push at the "
             "bound must exceed Fr)",
             s.admittance.max_push,
         )
-    _require(
+    require(
         s.time_step > 0 or s.sensor.kind == "flexiforce",
         "sensor.kind",
         "flexiforce with time_step = 0 (a continuous plant's contact results depend on its "
@@ -324,7 +317,7 @@ def validate_grasp(scenario: GraspScenario) -> GraspScenario:
         from admittance.systems.flexiforce import FlexiForceSensor
 
         full_scale = FlexiForceSensor().saturation_force
-        _require(
+        require(
             max(s.force_reference) < 0.9 * full_scale,
             "force_reference",
             f"< {0.9 * full_scale:.4g} N with sensor.kind=flexiforce (90 % of full scale)",
@@ -342,17 +335,6 @@ def load_grasp_scenario(
     Raises:
         ScenarioError: one line naming the first bad key and what is allowed.
     """
-    data = _coerce_numbers(dict(data))
+    data = dict(data)
     data.setdefault("kind", "grasp")
-    items = overrides.items() if isinstance(overrides, typing.Mapping) else None
-    if items is None:
-        items = parse_overrides(overrides)
-    valid = scenario_keys(GraspScenario)
-    sections = {k.rsplit(".", i)[0] for k in valid for i in range(1, k.count(".") + 1)}
-    for key, value in items:
-        if key not in valid and key not in sections:
-            raise _unknown_key_error(key, valid)
-        _set_dotted(data, key, value)
-    checked = _check_tree(data, GraspScenario, valid=valid)
-    scenario = yaml_load_typed(schema=GraspScenario, data=_dump(checked))
-    return validate_grasp(scenario)
+    return validate_grasp(load_typed(data, GraspScenario, overrides))

@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import matplotlib.pyplot as plt
 
-from admittance.diagrams.simulation import SimulationResult
+from admittance.diagrams.run.planar_arm import SimulationResult
 
-__all__ = ["plot_errors", "plot_reference", "plot_force"]
+__all__ = [
+    "plot_errors",
+    "plot_force",
+    "plot_reference",
+]
 
 
 def _finish(axis, ylabel: str, *, xlabel: str | None = None) -> None:

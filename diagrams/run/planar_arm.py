@@ -3,48 +3,45 @@
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
-from pydrake.systems.framework import EventStatus
+from pydrake.systems.analysis import Simulator
 
-from admittance.diagrams.closed_loop import BuildClosedLoop, ClosedLoop, SetInitialConditions
-from admittance.diagrams.safety import (
+from admittance.diagrams.loop.planar_arm import BuildClosedLoop, ClosedLoop, SetInitialConditions
+from admittance.diagrams.loop.safety_layer import (
     CapStepForSampledMonitor,
     SafetyLayer,
     fault_detection,
     safety_columns,
     safety_metrics,
 )
-from admittance.diagrams.scenario import Scenario
+from admittance.diagrams.run.engine import RunResult, finish_run, simulate_loop
+from admittance.diagrams.run.metrics import (
+    CONTACT_FRACTION,
+    SETTLE_AVERAGE_SAMPLES,
+    SETTLE_BAND,
+    STEADY_WINDOW,
+    settling_time,
+    time_mean,
+    trailing_average,
+    until_mask,
+    window_mask,
+)
+from admittance.diagrams.scenario.planar_arm import Scenario
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
 __all__ = [
-    "SimulationDivergedError",
     "SimulationResult",
     "compute_metrics",
     "run_scenario",
     "settling_columns",
 ]
 
-# Window over which "steady state" and "before an event" errors are averaged, s.
-STEADY_WINDOW = 1.0
-# Band around Fr that counts as settled (relative).
-SETTLE_BAND = 0.05
-# With sensor noise, settling is judged on the force averaged over this many noise samples,
-# so that the ripple the noise leaves on the force (which no controller removes) does not
-# hide that the loop has settled. Without noise the raw force is used.
-SETTLE_AVERAGE_SAMPLES = 4
-# A force above this fraction of Fr counts as contact (the tip may start touching the wall
-# with zero force, which is not yet a contact).
-CONTACT_FRACTION = 0.01
-
 
 @dataclass
-class SimulationResult:
+class SimulationResult(RunResult):
     """Time series of one run, as plain arrays (SI units), and its metrics."""
 
     scenario: Scenario
@@ -94,53 +91,6 @@ class SimulationResult:
         } | (safety_columns(self.safety) if self.safety is not None else {})
 
 
-def _time_mean(time: np.ndarray, values: np.ndarray) -> float:
-    """Time-weighted mean (trapezoid) of samples at irregular times."""
-    if time.size < 2 or time[-1] <= time[0]:
-        return float(np.mean(values)) if values.size else math.nan
-    return float(np.trapezoid(values, time) / (time[-1] - time[0]))
-
-
-def _window(time: np.ndarray, start: float, end: float) -> np.ndarray:
-    return (time >= start) & (time <= end)
-
-
-def _until(time: np.ndarray, start: float, end: float) -> np.ndarray:
-    """Samples in [start, end): at `end` the next event has happened (a sample logged at
-    that very instant, as a sampled controller's step gives, already shows it). The run's
-    last sample is kept when `end` is the end of the run."""
-    if time.size and end >= time[-1]:
-        return _window(time, start, end)
-    return (time >= start) & (time < end)
-
-
-def _trailing_average(time: np.ndarray, values: np.ndarray, window: float) -> np.ndarray:
-    """Mean of `values` over [t - window, t] at each sample (trapezoid, irregular times)."""
-    integral = np.concatenate([[0.0], np.cumsum(np.diff(time) * 0.5 * (values[1:] + values[:-1]))])
-    start = np.maximum(time - window, time[0])
-    span = time - start
-    averaged = values.astype(float).copy()
-    ok = span > 0
-    averaged[ok] = (integral[ok] - np.interp(start[ok], time, integral)) / span[ok]
-    return averaged
-
-
-def _settling_time(time, force, reference, event_time, end_time) -> float | None:
-    """Time after `event_time` from which |F - Fr| <= 5 % Fr until `end_time` (exclusive).
-
-    `force` may be averaged first to ignore noise ripple (see compute_metrics).
-    """
-    mask = _until(time, event_time, end_time)
-    t = time[mask]
-    outside = np.abs(force[mask] - reference) > SETTLE_BAND * reference
-    if t.size == 0 or outside[-1]:
-        return None
-    if not outside.any():
-        return 0.0
-    last_outside = np.nonzero(outside)[0][-1]
-    return float(t[last_outside + 1] - event_time)
-
-
 def compute_metrics(result: SimulationResult) -> dict:
     """The force metrics of metrics.json, plus per-event settling and contact losses."""
     time = result.time
@@ -153,12 +103,12 @@ def compute_metrics(result: SimulationResult) -> dict:
     contact_indices = np.nonzero(in_contact)[0]
     first_contact = float(time[contact_indices[0]]) if contact_indices.size else None
 
-    last = _window(time, duration - STEADY_WINDOW, duration)
+    last = window_mask(time, duration - STEADY_WINDOW, duration)
     metrics: dict = {
         "peak_force": float(np.max(force)),
-        "steady_state_force_error": _time_mean(time[last], error[last]),
+        "steady_state_force_error": time_mean(time[last], error[last]),
         # Signed: above or below Fr at the end (steady_state_force_error is its magnitude).
-        "final_mean_force": _time_mean(time[last], force[last]),
+        "final_mean_force": time_mean(time[last], force[last]),
         "rms_force_error": None,
         "first_contact_time": first_contact,
         "contact_losses": 0,
@@ -187,7 +137,7 @@ def compute_metrics(result: SimulationResult) -> dict:
         metrics["first_contact_transient_end"] = float(time[reached[0]])
         metrics["peak_force_after_first_contact_transient"] = float(np.max(force[reached[0] :]))
     after = time >= first_contact
-    metrics["rms_force_error"] = math.sqrt(_time_mean(time[after], error[after] ** 2))
+    metrics["rms_force_error"] = math.sqrt(time_mean(time[after], error[after] ** 2))
     # Contact losses: transitions from contact to no contact after first contact.
     lost = np.nonzero(in_contact[:-1] & ~in_contact[1:])[0]
     metrics["contact_losses"] = int(lost.size)
@@ -210,42 +160,42 @@ def compute_metrics(result: SimulationResult) -> dict:
     sensor = scenario.sensor
     if sensor.kind != "ideal" and sensor.noise_std > 0:
         window = SETTLE_AVERAGE_SAMPLES * sensor.noise_period
-        averaged_force = _trailing_average(time, force, window)
+        averaged_force = trailing_average(time, force, window)
     else:
         averaged_force = force
     # Settled: at least one window after every event.
     settled = after.copy()
     for index, (kind, event_time) in enumerate(events):
         next_time = events[index + 1][1] if index + 1 < len(events) else duration
-        before = _until(time, event_time - STEADY_WINDOW, event_time)
-        window = _until(time, event_time, next_time)
-        settled &= ~_window(time, event_time, event_time + STEADY_WINDOW)
+        before = until_mask(time, event_time - STEADY_WINDOW, event_time)
+        window = until_mask(time, event_time, next_time)
+        settled &= ~window_mask(time, event_time, event_time + STEADY_WINDOW)
         metrics["events"].append(
             {
                 "kind": kind,
                 "time": float(event_time),
                 "mean_abs_force_error_before": (
-                    _time_mean(time[before], error[before])
+                    time_mean(time[before], error[before])
                     if kind != "first_contact" and before.sum() > 1
                     else None
                 ),
                 "peak_force_after": float(np.max(force[window])) if window.any() else None,
                 "min_force_after": float(np.min(force[window])) if window.any() else None,
-                "settling_time": _settling_time(
+                "settling_time": settling_time(
                     time, averaged_force, reference, event_time, next_time
                 ),
             }
         )
     for fault in scenario.faults:
-        settled &= ~_window(time, fault.start, fault.end)
+        settled &= ~window_mask(time, fault.start, fault.end)
     if settled.sum() > 1:
-        metrics["mean_abs_force_error_settled"] = _time_mean(time[settled], error[settled])
+        metrics["mean_abs_force_error_settled"] = time_mean(time[settled], error[settled])
     metrics["finite_actuation"] = bool(np.all(np.isfinite(result.actuation)))
     metrics["faults"] = []
     for fault in scenario.faults:
-        during = _until(time, fault.start, min(fault.end, duration))
+        during = until_mask(time, fault.start, min(fault.end, duration))
         recovery_end = min([e[1] for e in events if e[1] > fault.end] + [duration])
-        after = _until(time, fault.end, recovery_end)
+        after = until_mask(time, fault.end, recovery_end)
         metrics["faults"].append(
             {
                 "kind": fault.kind,
@@ -254,7 +204,7 @@ def compute_metrics(result: SimulationResult) -> dict:
                 "worst_force_during": float(np.max(force[during])) if during.any() else None,
                 # The danger of some faults comes when they end (a wall snapping back).
                 "peak_force_after": float(np.max(force[after])) if after.any() else None,
-                "recovery_time": _settling_time(
+                "recovery_time": settling_time(
                     time, averaged_force, reference, fault.end, recovery_end
                 ),
             }
@@ -268,7 +218,9 @@ def compute_metrics(result: SimulationResult) -> dict:
         metrics["safety_detections"] = len(metrics["safety"]["detections"])
         metrics["safety_final_stiffness_estimate"] = metrics["safety"]["final_stiffness_estimate"]
     if scenario.wall.velocity != 0.0:
-        moving = _window(time, scenario.wall.motion_start, min(scenario.wall.motion_end, duration))
+        moving = window_mask(
+            time, scenario.wall.motion_start, min(scenario.wall.motion_end, duration)
+        )
         if moving.any():
             metrics["force_min_while_wall_moves"] = float(np.min(force[moving]))
             metrics["force_max_while_wall_moves"] = float(np.max(force[moving]))
@@ -296,44 +248,6 @@ def _log_data(loop: ClosedLoop, root_context, name: str):
     return log.sample_times(), log.data().T
 
 
-# A run whose joint speed exceeds this is diverging (the arm's motors reach a few rad/s).
-DIVERGED_JOINT_SPEED = 1e3  # rad/s
-
-
-class SimulationDivergedError(RuntimeError):
-    """The simulation blew up; `result` holds what was logged until then (failed=True)."""
-
-    def __init__(self, message: str, result: SimulationResult) -> None:
-        super().__init__(message)
-        self.result = result
-
-
-def _divergence_monitor(
-    loop: ClosedLoop, found: list, progress: Callable[[float], None] | None = None
-):
-    """A Simulator monitor that stops at the first non-finite or runaway plant state, and
-    tells `progress` the simulated time after each step."""
-    plant = loop.plant
-    num_positions = plant.num_positions()
-
-    def monitor(root_context):
-        if progress is not None:
-            progress(root_context.get_time())
-        state = plant.GetPositionsAndVelocities(plant.GetMyContextFromRoot(root_context))
-        if not np.all(np.isfinite(state)):
-            found.append(f"the plant state is not finite at t = {root_context.get_time():.6g} s")
-        elif np.max(np.abs(state[num_positions:])) > DIVERGED_JOINT_SPEED:
-            found.append(
-                f"a joint speed exceeds {DIVERGED_JOINT_SPEED:g} rad/s at "
-                f"t = {root_context.get_time():.6g} s"
-            )
-        else:
-            return EventStatus.Succeeded()
-        return EventStatus.ReachedTermination(None, found[-1])
-
-    return monitor
-
-
 def run_scenario(
     scenario: Scenario,
     *,
@@ -349,37 +263,24 @@ def run_scenario(
         SimulationDivergedError: the run blew up; the exception carries the partial result.
     """
     loop = loop or BuildClosedLoop(scenario)
-    simulator = Simulator(loop.diagram)
-    ApplySimulatorConfig(scenario.simulator, simulator)
-    if scenario.safety.enabled:
-        CapStepForSampledMonitor(scenario, simulator)
-    context = simulator.get_mutable_context()
-    SetInitialConditions(loop, context)
-    divergence: list[str] = []
-    simulator.set_monitor(_divergence_monitor(loop, divergence, progress))
-    simulator.Initialize()
     layer = loop.admittance if isinstance(loop.admittance, SafetyLayer) else None
-    safety_numbers = layer.numbers(context) if layer is not None else None
-    start = time.perf_counter()
-    try:
-        simulator.AdvanceTo(scenario.duration)
-    except RuntimeError as error:  # e.g. the integrator cannot reach the accuracy
-        divergence.append(
-            f"the integrator failed at t = {context.get_time():.6g} s: {str(error).splitlines()[0]}"
-        )
-    wall_time = time.perf_counter() - start
-    return _finished(_collect(loop, simulator, wall_time, safety_numbers), divergence)
-
-
-def _finished(result, divergence: list[str]):
-    """`result` marked failed or not in its metrics; raises SimulationDivergedError with it
-    if `divergence` holds a reason (the last one is reported)."""
-    if divergence:
-        result.metrics["failed"] = True
-        result.metrics["failure"] = divergence[-1]
-        raise SimulationDivergedError(f"simulation diverged: {divergence[-1]}", result)
-    result.metrics["failed"] = False
-    return result
+    numbers: list[dict] = []
+    run = simulate_loop(
+        loop.diagram,
+        loop.plant,
+        scenario.simulator,
+        scenario.duration,
+        initialize=lambda context: SetInitialConditions(loop, context),
+        configure=(
+            (lambda simulator: CapStepForSampledMonitor(scenario, simulator))
+            if scenario.safety.enabled
+            else None
+        ),
+        initialized=(lambda context: numbers.append(layer.numbers(context))) if layer else None,
+        progress=progress,
+    )
+    safety_numbers = numbers[0] if numbers else None
+    return finish_run(_collect(loop, run.simulator, run.wall_time, safety_numbers), run.divergence)
 
 
 def _collect(

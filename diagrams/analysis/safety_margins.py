@@ -15,8 +15,8 @@ import itertools
 
 import numpy as np
 
-from admittance.diagrams.scenario import Scenario
-from admittance.diagrams.stability import simulate_near_critical, with_values
+from admittance.diagrams.analysis.stability import simulate_near_critical, with_values
+from admittance.diagrams.scenario.planar_arm import Scenario
 
 __all__ = ["edge_confirmations", "unstable_points"]
 

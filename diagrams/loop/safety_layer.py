@@ -19,7 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.systems.framework import Context, DiagramBuilder
 
-from admittance.diagrams.scenario import Scenario, ScenarioError
+from admittance.diagrams.scenario.planar_arm import Scenario
+from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.systems.contact_force_observer import ContactForceObserver
 from admittance.systems.fault_detector import FAULT_FLAGS, SensorFaultDetector
 from admittance.systems.flexiforce import FlexiForceSensor
@@ -74,7 +75,7 @@ class SafetyLayer:
     estimator: StiffnessEstimator
     observer: ContactForceObserver
 
-    # The force controller's ports (diagrams/force_controllers.py): the reading goes to
+    # The force controller's ports (diagrams/loop/point.py): the reading goes to
     # the detector, Fr and Xd to the law, Xr comes out of the law.
     @property
     def measured_force_input(self):

@@ -15,14 +15,11 @@ import numpy as np
 from pydrake.systems.framework import Context
 from pydrake.systems.primitives import Linearize, LinearSystem
 
-from admittance.diagrams.closed_loop import (
-    WALL_NORMAL_AXIS,
-    BuildClosedLoop,
-    ClosedLoop,
-    SolvePlanarInverseKinematics,
-)
-from admittance.diagrams.safety import SafetyLayer
-from admittance.diagrams.scenario import Scenario, ScenarioError
+from admittance.diagrams.loop.planar_arm import WALL_NORMAL_AXIS, BuildClosedLoop, ClosedLoop
+from admittance.diagrams.loop.safety_layer import SafetyLayer
+from admittance.diagrams.robots.planar_arm import SolvePlanarInverseKinematics
+from admittance.diagrams.scenario.planar_arm import Scenario
+from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
 __all__ = ["Equilibrium", "FindContactEquilibrium", "LinearizeAtEquilibrium", "static_scenario"]

@@ -16,31 +16,31 @@ within SETTLE_BAND of Fr to the end of the run.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
-from admittance.diagrams.grasp import (
-    BRICK_BODY,
-    BRICK_JOINTS,
-    FINGER_COORDINATES,
+from admittance.diagrams.loop.planar_gripper import (
     BuildGrasp,
     GraspLoop,
     SetGraspInitialConditions,
+)
+from admittance.diagrams.robots.planar_gripper import (
+    BRICK_BODY,
+    BRICK_JOINTS,
+    FINGER_COORDINATES,
     contact_frame,
     tip_centre_frame,
 )
-from admittance.diagrams.grasp_scenario import FINGERS, GraspScenario
-from admittance.diagrams.simulation import (
+from admittance.diagrams.run.engine import RunResult, finish_run, simulate_loop
+from admittance.diagrams.run.metrics import (
     CONTACT_FRACTION,
-    SETTLE_BAND,
     STEADY_WINDOW,
-    _divergence_monitor,
-    _finished,
+    settled_from,
+    time_mean,
 )
+from admittance.diagrams.scenario.planar_gripper import FINGERS, GraspScenario
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
 __all__ = [
@@ -58,7 +58,7 @@ DROP_LIMIT = 1e-3
 
 
 @dataclass
-class GraspResult:
+class GraspResult(RunResult):
     """Time series of one grasp (SI units) and its metrics."""
 
     scenario: GraspScenario
@@ -97,27 +97,6 @@ class GraspResult:
         return columns
 
 
-def _settle_time(time, force, reference, start, end=np.inf) -> float | None:
-    """First time in [start, end) from which |F - Fr| <= SETTLE_BAND Fr until `end` (None:
-    never)."""
-    window = (time >= start) & (time < end)
-    if not window.any():
-        return None
-    outside = (np.abs(force - reference) > SETTLE_BAND * reference) & window
-    last = np.nonzero(window)[0][-1]
-    if outside[last]:
-        return None
-    if not outside.any():
-        return float(time[np.argmax(window)])
-    return float(time[np.nonzero(outside)[0][-1] + 1])
-
-
-def _time_mean(time, values) -> float:
-    if time.size < 2:
-        return float(np.mean(values))
-    return float(np.trapezoid(values, time) / (time[-1] - time[0]))
-
-
 def compute_grasp_metrics(result: GraspResult) -> dict:
     """metrics.json of a grasp: the verdict, the brick, and every finger's forces."""
     scenario = result.scenario
@@ -130,7 +109,7 @@ def compute_grasp_metrics(result: GraspResult) -> dict:
     hold_end = disturbance.start if disturbance.kind != "none" else np.inf
     after_ramp = time >= ramp_end
     settle_times = [
-        _settle_time(time, result.force[:, i], references[i], ramp_end, hold_end) for i in range(3)
+        settled_from(time, result.force[:, i], references[i], ramp_end, hold_end) for i in range(3)
     ]
     settled = None if None in settle_times else max(settle_times)
     hold_start = settled if settled is not None else ramp_end
@@ -161,8 +140,8 @@ def compute_grasp_metrics(result: GraspResult) -> dict:
                 "settling_time": (
                     None if settle_times[index] is None else settle_times[index] - ramp_end
                 ),
-                "final_mean_force": _time_mean(time[last], force[last]),
-                "steady_state_force_error": _time_mean(time[last], np.abs(force[last] - reference)),
+                "final_mean_force": time_mean(time[last], force[last]),
+                "steady_state_force_error": time_mean(time[last], np.abs(force[last] - reference)),
                 "max_relative_force_error_held": float(np.max(error_held)),
                 "slip": float(np.max(np.abs(result.slip[holding, index]))),
             }
@@ -201,7 +180,7 @@ def compute_grasp_metrics(result: GraspResult) -> dict:
         start = disturbance.start
         end = start + (disturbance.duration if disturbance.kind == "force_pulse" else 0.0)
         after = time >= start
-        recovery = [_settle_time(time, result.force[:, i], references[i], start) for i in range(3)]
+        recovery = [settled_from(time, result.force[:, i], references[i], start) for i in range(3)]
         metrics["disturbance"] = {
             "kind": disturbance.kind,
             "start": start,
@@ -233,38 +212,33 @@ def run_grasp(
         SimulationDivergedError: the run blew up (the exception carries the partial result).
     """
     loop = loop or BuildGrasp(scenario)
-    simulator = Simulator(loop.diagram)
-    ApplySimulatorConfig(scenario.simulator, simulator)
-    context = simulator.get_mutable_context()
-    SetGraspInitialConditions(loop, context)
-    divergence: list[str] = []
-    simulator.set_monitor(_divergence_monitor(loop, divergence, progress))
-    simulator.Initialize()
-    stops = [scenario.duration]
+    stops = []
     disturbance = scenario.disturbance
     if disturbance.kind == "mass_step":
-        stops.insert(0, disturbance.start)
-    start = time.perf_counter()
-    try:
-        for index, stop in enumerate(stops):
-            simulator.AdvanceTo(stop)
-            if divergence:
-                break
-            if index == 0 and len(stops) > 1:
-                brick = loop.plant.GetBodyByName(BRICK_BODY)
-                plant_context = loop.plant.GetMyMutableContextFromRoot(context)
-                brick.SetMass(plant_context, disturbance.mass_scale * brick.default_mass())
-    except RuntimeError as error:
-        divergence.append(
-            f"the simulation failed at t = {context.get_time():.6g} s: {str(error).splitlines()[0]}"
-        )
-    wall_time = time.perf_counter() - start
+
+        def heavier_brick(context) -> None:
+            brick = loop.plant.GetBodyByName(BRICK_BODY)
+            plant_context = loop.plant.GetMyMutableContextFromRoot(context)
+            brick.SetMass(plant_context, disturbance.mass_scale * brick.default_mass())
+
+        stops.append((disturbance.start, heavier_brick))
+    run = simulate_loop(
+        loop.diagram,
+        loop.plant,
+        scenario.simulator,
+        scenario.duration,
+        initialize=lambda context: SetGraspInitialConditions(loop, context),
+        stops=stops,
+        progress=progress,
+        solver="simulation",
+    )
+    context = run.context
     steps = (
         int(round(context.get_time() / scenario.time_step))
         if scenario.time_step > 0
-        else int(simulator.get_integrator().get_num_steps_taken())
+        else int(run.simulator.get_integrator().get_num_steps_taken())
     )
-    return _finished(_collect(loop, context, wall_time, steps), divergence)
+    return finish_run(_collect(loop, context, run.wall_time, steps), run.divergence)
 
 
 def _collect(loop: GraspLoop, context, wall_time: float, steps: int) -> GraspResult:

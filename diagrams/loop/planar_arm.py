@@ -16,53 +16,52 @@ wall's F itself.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
-from pydrake.common import RandomDistribution, RandomGenerator
-from pydrake.multibody.parsing import Parser
-from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
+from pydrake.common import RandomGenerator
+from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import (
-    Adder,
     ConstantVectorSource,
-    Gain,
-    LogVectorOutput,
     RandomSource,
     VectorLogSink,
 )
 
-from admittance.diagrams.force_controllers import WALL_NORMAL_AXIS, AddForceController
-from admittance.diagrams.safety import AddSafetyLayer, SafetyLayer
-from admittance.diagrams.scenario import (
-    ArmConfig,
-    FaultConfig,
-    LoggingConfig,
-    PidConfig,
+from admittance.diagrams.loop.point import (
+    AddCommandedPosition,
+    AddForceController,
+    AddLoggers,
+    AddPointKinematics,
+    AddPointPid,
+    AddSensorChain,
+)
+from admittance.diagrams.loop.safety_layer import AddSafetyLayer, SafetyLayer
+from admittance.diagrams.robots.description import ForcePoint
+from admittance.diagrams.robots.planar_arm import (
+    WALL_NORMAL_AXIS,
+    AddScenarioArm,
+    SolvePlanarInverseKinematics,
+    fingertip_point,
+)
+from admittance.diagrams.scenario.planar_arm import (
     Scenario,
-    ScenarioError,
-    SensorConfig,
     TrajectoryConfig,
     WallConfig,
 )
+from admittance.diagrams.scenario.schema import ScenarioError
+from admittance.diagrams.scenario.sections import FaultConfig
 from admittance.systems.cartesian_pid import CartesianPid
 from admittance.systems.compliant_wall import CompliantWall
 from admittance.systems.desired_trajectory import DesiredTrajectory
 from admittance.systems.flexiforce import FlexiForceSensor
 from admittance.systems.planar_kinematics import PlanarFrameKinematics, PlanarKinematics
-from admittance.systems.sensor_fault import SensorFault
 
 __all__ = [
+    "BuildClosedLoop",
     "CheckScenarioStarts",
     "ClosedLoop",
-    "AddPlanarArm",
-    "AddScenarioArm",
-    "BuildClosedLoop",
     "SetInitialConditions",
-    "SolvePlanarInverseKinematics",
 ]
-
-GRAVITY_W = np.array([0.0, -9.81, 0.0])
 
 
 @dataclass
@@ -86,41 +85,6 @@ class ClosedLoop:
     scene_graph: object | None = None
 
 
-def AddPlanarArm(
-    builder: DiagramBuilder,
-    urdf: str | Path,
-    *,
-    fingertip_frame: str = "fingertip",
-    reflected_inertia: bool = False,
-):
-    """Adds the arm of the URDF file `urdf` as a continuous MultibodyPlant, gravity along -y.
-
-    Args:
-        urdf: the URDF file (a path; ``ArmConfig.urdf_path()`` resolves a scenario's).
-        fingertip_frame: the frame at the contact point, which the URDF must have.
-        reflected_inertia: keep the motors' reflected inertia (``drake:rotor_inertia`` and
-            ``drake:gear_ratio``); False zeroes it, the paper's rigid-body model.
-
-    Returns:
-        (plant, scene_graph), the plant finalized.
-
-    Raises:
-        ScenarioError: (arm.fingertip_frame) the URDF has no such frame.
-    """
-    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
-    plant.set_name("plant")
-    scene_graph.set_name("scene_graph")
-    Parser(plant).AddModels(str(urdf))
-    plant.mutable_gravity_field().set_gravity_vector(GRAVITY_W)
-    if not reflected_inertia:
-        for index in plant.GetJointActuatorIndices():
-            plant.get_mutable_joint_actuator(index).set_default_rotor_inertia(0.0)
-    plant.Finalize()
-    if not plant.HasFrameNamed(fingertip_frame):
-        raise ScenarioError(f"arm.fingertip_frame: the URDF has no frame named '{fingertip_frame}'")
-    return plant, scene_graph
-
-
 def _stiffness_schedule(wall: WallConfig, faults: list[FaultConfig]) -> list[tuple[float, float]]:
     """Ke steps of the wall, with each stiffness_jump fault as a step and a step back."""
     steps = sorted((s.time, s.stiffness) for s in wall.stiffness_steps)
@@ -139,16 +103,6 @@ def _stiffness_schedule(wall: WallConfig, faults: list[FaultConfig]) -> list[tup
     return steps
 
 
-def AddScenarioArm(builder: DiagramBuilder, arm: ArmConfig):
-    """:func:`AddPlanarArm` with the settings of a scenario's `arm` section."""
-    return AddPlanarArm(
-        builder,
-        arm.urdf_path(),
-        fingertip_frame=arm.fingertip_frame,
-        reflected_inertia=arm.reflected_inertia,
-    )
-
-
 def _AddDesiredTrajectory(builder: DiagramBuilder, trajectory: TrajectoryConfig):
     """Xd of eq. 19."""
     system = builder.AddSystem(
@@ -159,16 +113,6 @@ def _AddDesiredTrajectory(builder: DiagramBuilder, trajectory: TrajectoryConfig)
         )
     )
     system.set_name("desired_trajectory")
-    return system
-
-
-def _AddKinematics(
-    builder: DiagramBuilder, plant: MultibodyPlant, fingertip_frame: str
-) -> PlanarKinematics:
-    """X, dX/dt and J of the fingertip, once per evaluation, for the PID and the wall."""
-    system = builder.AddSystem(PlanarKinematics(plant, frame_name=fingertip_frame))
-    system.set_name("fingertip_kinematics")
-    builder.Connect(plant.get_state_output_port(), system.estimated_state_input)
     return system
 
 
@@ -203,98 +147,10 @@ def _AddWall(
     return system
 
 
-def _AddSensor(
-    builder: DiagramBuilder,
-    contact_force_output,
-    sensor: SensorConfig,
-    faults: list[FaultConfig],
-    *,
-    noise: bool,
-):
-    """The force sensor on the wall's contact force, its faults and its noise source.
-
-    The ideal sensor is a wire: its reading is the contact force, with no system to
-    evaluate.
-
-    Returns:
-        (the FlexiForce system or None, the port of the force it reports, the random
-        sources added).
-    """
-    system = None
-    if sensor.kind == "ideal":
-        measured_force_output = contact_force_output
-    else:
-        system = builder.AddSystem(
-            FlexiForceSensor(kind=sensor.kind, filter_cutoff_hz=sensor.filter_cutoff)
-        )
-        system.set_name("flexiforce_sensor")
-        builder.Connect(contact_force_output, system.contact_force_input)
-        measured_force_output = system.measured_force_output
-    sensor_faults = [
-        (f.kind, f.start, f.end, f.value) for f in faults if f.kind.startswith("sensor_")
-    ]
-    if sensor_faults:
-        fault = builder.AddSystem(SensorFault(sensor_faults))
-        fault.set_name("sensor_fault")
-        builder.Connect(measured_force_output, fault.measured_force_input)
-        measured_force_output = fault.reported_force_output
-    random_sources = []
-    if system is None:
-        return system, measured_force_output, random_sources
-    if noise and sensor.noise_std > 0:
-        source = builder.AddSystem(
-            RandomSource(RandomDistribution.kGaussian, 1, sensor.noise_period)
-        )
-        source.set_name("sensor_noise")
-        random_sources.append(source)
-        gain = builder.AddSystem(Gain(sensor.noise_std, 1))
-        gain.set_name("noise_std")
-        builder.Connect(source.get_output_port(0), gain.get_input_port())
-        builder.Connect(gain.get_output_port(), system.noise_input)
-    else:
-        zero = builder.AddSystem(ConstantVectorSource([0.0]))
-        zero.set_name("no_noise")
-        builder.Connect(zero.get_output_port(), system.noise_input)
-    return system, measured_force_output, random_sources
-
-
-def _AddPid(
-    builder: DiagramBuilder,
-    plant: MultibodyPlant,
-    kinematics: PlanarKinematics,
-    pid: PidConfig,
-    desired_velocity_output,
-) -> CartesianPid:
-    """The Cartesian PID of eq. 14-16 driving the arm's actuators (its Xc is wired later)."""
-    system = builder.AddSystem(
-        CartesianPid(
-            plant,
-            frame_name=kinematics.frame_name,
-            kp=pid.kp,
-            kd=pid.kd,
-            ki=pid.ki,
-            period=pid.period,
-        )
-    )
-    system.set_name("cartesian_pid")
-    builder.Connect(kinematics.kinematics_output, system.kinematics_input)
-    builder.Connect(system.actuation_output, plant.get_actuation_input_port())
-    builder.Connect(desired_velocity_output, system.commanded_velocity_input)
-    return system
-
-
-def _AddCommandedPosition(builder: DiagramBuilder, desired_position_output, pid: CartesianPid):
-    """Xc = Xd + Xr into the PID; returns the adder, whose input 1 takes Xr."""
-    commanded = builder.AddSystem(Adder(2, 3))
-    commanded.set_name("commanded_position")
-    builder.Connect(desired_position_output, commanded.get_input_port(0))
-    builder.Connect(commanded.get_output_port(), pid.commanded_position_input)
-    return commanded
-
-
 def _AddForceLoop(
     builder: DiagramBuilder,
     scenario: Scenario,
+    point: ForcePoint,
     trajectory: DesiredTrajectory,
     pid: CartesianPid,
     measured_force_output,
@@ -312,7 +168,7 @@ def _AddForceLoop(
     if open_admittance_loop:
         if not analysis:
             raise ValueError("open_admittance_loop is for analysis diagrams only")
-        commanded = _AddCommandedPosition(builder, trajectory.desired_position_output, pid)
+        commanded = AddCommandedPosition(builder, point, trajectory.desired_position_output, pid)
         builder.ExportInput(commanded.get_input_port(1), "reference_offset")
         return None
     if scenario.safety.enabled:
@@ -320,7 +176,7 @@ def _AddForceLoop(
             builder, scenario, plant=plant, pid=pid, trajectory=trajectory, analysis=analysis
         )
     else:
-        controller = AddForceController(builder, scenario)
+        controller = AddForceController(builder, point)
     if controller is None:
         builder.Connect(trajectory.desired_position_output, pid.commanded_position_input)
         return None
@@ -335,19 +191,9 @@ def _AddForceLoop(
     builder.Connect(measured_force_output, controller.measured_force_input)
     if hasattr(controller, "desired_position_input"):  # eq. 6 subtracts Xd
         builder.Connect(trajectory.desired_position_output, controller.desired_position_input)
-    commanded = _AddCommandedPosition(builder, trajectory.desired_position_output, pid)
+    commanded = AddCommandedPosition(builder, point, trajectory.desired_position_output, pid)
     builder.Connect(controller.reference_offset_output, commanded.get_input_port(1))
     return controller
-
-
-def _AddLoggers(builder: DiagramBuilder, ports: dict, logging: LoggingConfig) -> dict:
-    """A VectorLogSink on each port, named log_<name>."""
-    loggers = {}
-    for name, port in ports.items():
-        logger = LogVectorOutput(port, builder, logging.period)
-        logger.set_name(f"log_{name}")
-        loggers[name] = logger
-    return loggers
 
 
 def BuildClosedLoop(
@@ -366,18 +212,19 @@ def BuildClosedLoop(
             admittance block closes, for the analysis of a sampled admittance block.
     """
     builder = DiagramBuilder()
-    frame = scenario.arm.fingertip_frame
+    point = fingertip_point(scenario)
     plant, scene_graph = AddScenarioArm(builder, scenario.arm)
     trajectory = _AddDesiredTrajectory(builder, scenario.trajectory)
-    kinematics = _AddKinematics(builder, plant, frame)
+    kinematics = AddPointKinematics(builder, plant, point)
     wall = _AddWall(builder, plant, kinematics, scenario.wall, scenario.faults)
-    sensor, measured_force_output, random_sources = _AddSensor(
-        builder, wall.contact_force_output, scenario.sensor, scenario.faults, noise=not analysis
-    )
-    pid = _AddPid(builder, plant, kinematics, scenario.pid, trajectory.desired_velocity_output)
+    reading = AddSensorChain(builder, point, wall.contact_force_output, noise=not analysis)
+    measured_force_output = reading.measured_force_output
+    pid = AddPointPid(builder, plant, point, kinematics, trajectory.desired_velocity_output)
+    builder.Connect(pid.actuation_output, plant.get_actuation_input_port())
     controller = _AddForceLoop(
         builder,
         scenario,
+        point,
         trajectory,
         pid,
         measured_force_output,
@@ -401,7 +248,7 @@ def BuildClosedLoop(
             ports["reference_offset"] = controller.reference_offset_output
         if isinstance(controller, SafetyLayer):
             ports.update(controller.log_ports())
-        loggers = _AddLoggers(builder, ports, scenario.logging)
+        loggers = AddLoggers(builder, ports, scenario.logging.period)
 
     diagram = builder.Build()
     diagram.set_name("optimal_admittance_loop")
@@ -412,56 +259,13 @@ def BuildClosedLoop(
         trajectory=trajectory,
         pid=pid,
         wall=wall,
-        sensor=sensor,
+        sensor=reading.sensor,
         kinematics=kinematics,
         admittance=controller,
-        random_sources=random_sources,
+        random_sources=reading.random_sources,
         loggers=loggers,
         scene_graph=scene_graph,
     )
-
-
-def SolvePlanarInverseKinematics(
-    plant: MultibodyPlant,
-    frame_name: str,
-    target,
-    joint_guess,
-    *,
-    tolerance: float = 1e-10,
-    max_iterations: int = 100,
-    coordinates: tuple[str, ...] = ("x", "y", "theta"),
-    expressed_in: str = "world",
-) -> np.ndarray:
-    """Joint positions that put `frame_name` at X = target, by Newton steps from a seed.
-
-    Uses the plant's own kinematics (so any planar URDF works); the seed picks the branch.
-    X is (x, y, theta) in world unless `coordinates` and `expressed_in` say otherwise (a
-    fingertip's (x, y) in its face's frame); the seed may hold every position of the plant,
-    and joints that do not move the frame keep their seed.
-
-    Raises:
-        ValueError: the target is not reached (out of the workspace, or singular).
-    """
-    kinematics = PlanarFrameKinematics(
-        plant, frame_name, coordinates=coordinates, expressed_in=expressed_in
-    )
-    angle = kinematics.angle_index
-    target = np.asarray(target, dtype=float)
-    q = np.zeros(plant.num_positions())
-    guess = np.asarray(joint_guess, dtype=float)
-    q[: min(q.size, guess.size)] = guess[: q.size]
-    v = np.zeros(plant.num_velocities())
-    for _ in range(max_iterations):
-        kinematics.set_state(np.concatenate([q, v]))
-        error = target - kinematics.pose()
-        if angle is not None:
-            error[angle] = np.arctan2(np.sin(error[angle]), np.cos(error[angle]))
-        if np.linalg.norm(error) < tolerance:
-            return q
-        step = np.linalg.lstsq(kinematics.jacobian(), error, rcond=None)[0]
-        # Limit each Newton step so that a far seed does not jump branches.
-        q = q + step * min(1.0, 0.5 / max(np.max(np.abs(step)), 1e-12))
-    raise ValueError(f"the pose {target.tolist()} is not reachable from the seed {guess.tolist()}")
 
 
 def _joint_speeds(loop: ClosedLoop, positions: np.ndarray, cartesian_velocity) -> np.ndarray:

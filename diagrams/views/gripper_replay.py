@@ -1,6 +1,6 @@
 """A self-contained Meshcat replay of a grasp: the hand, the brick and the contact forces.
 
-Like the arm's replay (diagrams/visualization.py), it is made after the run from the logged
+Like the arm's replay (diagrams/views/replay.py), it is made after the run from the logged
 data, on a diagram of its own (the hand and brick, a SceneGraph and a MeshcatVisualizer),
 so that the simulated loop never carries a visualizer.
 """
@@ -16,19 +16,21 @@ from pydrake.geometry import Rgba
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import DiagramBuilder
 
-from admittance.diagrams.grasp import AddHand
-from admittance.diagrams.grasp_scenario import FINGERS
-from admittance.diagrams.grasp_simulation import GraspResult
-from admittance.diagrams.visualization import (
-    _arrow_scale,
-    _ForceArrow,
-    _frame_times,
-    _interpolate,
-    _Replay,
-    _view_bounds,
+from admittance.diagrams.robots.planar_gripper import AddHand
+from admittance.diagrams.run.planar_gripper import GraspResult
+from admittance.diagrams.scenario.planar_gripper import FINGERS
+from admittance.diagrams.views.replay import (
+    ForceArrow,
+    Replay,
+    arrow_scale,
+    frame_times,
+    interpolate,
+    view_bounds,
 )
 
-__all__ = ["write_grasp_meshcat_replay"]
+__all__ = [
+    "write_grasp_meshcat_replay",
+]
 
 # Length of a force arrow per newton, m/N, unless the peak would draw longer than
 # ARROW_MAX_LENGTH (then the scale shrinks so the peak fits).
@@ -38,9 +40,9 @@ ARROW_MAX_LENGTH = 0.08
 OVERLAY_X = 0.06
 FORCE_PATH = "/replay/contact_force"
 _FORCE_COLOR = Rgba(0.85, 0.10, 0.10, 1.0)
-_SHAFT_WIDTH = 0.004
-_HEAD_LENGTH = 0.01
-_HEAD_RADIUS = 0.006
+ARROW_SHAFT_WIDTH = 0.004
+ARROW_HEAD_LENGTH = 0.01
+ARROW_HEAD_RADIUS = 0.006
 
 
 def _along(normal: np.ndarray) -> RotationMatrix:
@@ -67,26 +69,30 @@ def write_grasp_meshcat_replay(result: GraspResult, path: str | os.PathLike) -> 
         The path written.
     """
     path = Path(path)
-    times = _frame_times(result.time)
-    joint_positions = _interpolate(result.time, result.joint_positions, times)
+    times = frame_times(result.time)
+    joint_positions = interpolate(result.time, result.joint_positions, times)
     forces = np.maximum(
-        np.column_stack([_interpolate(result.time, result.force[:, i], times) for i in range(3)]),
+        np.column_stack([interpolate(result.time, result.force[:, i], times) for i in range(3)]),
         0.0,
     )
-    tips = [_interpolate(result.time, result.tip[:, i, :], times) for i in range(3)]
-    meters_per_newton = _arrow_scale(forces, ARROW_METERS_PER_NEWTON, ARROW_MAX_LENGTH)
+    tips = [interpolate(result.time, result.tip[:, i, :], times) for i in range(3)]
+    meters_per_newton = arrow_scale(forces, ARROW_METERS_PER_NEWTON, ARROW_MAX_LENGTH)
 
     builder = DiagramBuilder()
     plant, scene_graph, geometry = AddHand(builder, result.scenario)
-    replay = _Replay(builder, plant, scene_graph)
+    replay = Replay(builder, plant, scene_graph)
 
     normals, rotations, arrows = [], [], []
     for index, finger in enumerate(FINGERS):
         normals.append(geometry.face_frames[index].rotation().col(0))
         rotations.append(_along(normals[-1]))
         arrows.append(
-            _ForceArrow(
-                f"{FORCE_PATH}/{finger}", _SHAFT_WIDTH, _HEAD_LENGTH, _HEAD_RADIUS, _FORCE_COLOR
+            ForceArrow(
+                f"{FORCE_PATH}/{finger}",
+                ARROW_SHAFT_WIDTH,
+                ARROW_HEAD_LENGTH,
+                ARROW_HEAD_RADIUS,
+                _FORCE_COLOR,
             )
         )
         arrows[-1].add_to(replay.meshcat)
@@ -109,7 +115,7 @@ def write_grasp_meshcat_replay(result: GraspResult, path: str | os.PathLike) -> 
         for link in ("base", "link1", "link2", "tip_link")
     ] + [plant.GetBodyByName("brick_link")]
     sampled = joint_positions[:: max(1, len(joint_positions) // 50)]
-    bounds = _view_bounds(replay.body_positions(sampled, bodies)[:, 1:])
+    bounds = view_bounds(replay.body_positions(sampled, bodies)[:, 1:])
     # Camera in front of the plane (x = +1) looking along -x (its +y), world z up (its +z):
     # its x axis is then world +y, drawn to the right.
     X_WCamera = RigidTransform(RotationMatrix.MakeZRotation(math.pi / 2), [1.0, 0.0, 0.0])

@@ -1,0 +1,6 @@
+"""Analysis of a built loop: its equilibrium, Drake's Linearize, eigenvalues, Lyapunov
+certificates, critical gains and stability maps."""
+
+from admittance.diagrams.analysis.linearization import *  # noqa: F403
+from admittance.diagrams.analysis.safety_margins import *  # noqa: F403
+from admittance.diagrams.analysis.stability import *  # noqa: F403

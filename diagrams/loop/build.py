@@ -1,0 +1,28 @@
+"""One public builder for every robot: the loop of Fig. 1 for a scenario of any kind.
+
+:func:`BuildLoop` builds the loop that a scenario describes, whatever its robot: the
+paper's planar arm against its wall (``loop.planar_arm``) or Drake's planar gripper holding
+its brick (``loop.planar_gripper``). Both wire their force-controlled points with the same
+steps (``loop.point``); what a robot adds is its plant, its contact and its plan.
+"""
+
+from __future__ import annotations
+
+from admittance.diagrams.loop.planar_arm import BuildClosedLoop, ClosedLoop
+from admittance.diagrams.loop.planar_gripper import BuildGrasp, GraspLoop
+from admittance.diagrams.scenario.planar_gripper import GraspScenario
+
+__all__ = ["BuildLoop"]
+
+
+def BuildLoop(scenario, *, analysis: bool = False) -> ClosedLoop | GraspLoop:
+    """The loop of Fig. 1 for `scenario` (a validated scenario of any kind).
+
+    Args:
+        analysis: build for Linearize (no random source, no loggers; see each robot's
+            builder). The gripper's loop has no analysis variant of its own: its analysis
+            builds it with time_step = 0.
+    """
+    if isinstance(scenario, GraspScenario):
+        return BuildGrasp(scenario)
+    return BuildClosedLoop(scenario, analysis=analysis)

@@ -1,0 +1,222 @@
+"""The loop of Fig. 1 at one force-controlled point, for every robot.
+
+Each step below wires one part of the loop at a :class:`ForcePoint` of the robot's
+description: the point's kinematics (X, dX/dt and J, from the plant), its sensor chain
+(the FlexiForce with its faults and noise, or the true force), its force controller (the
+paper's law or a baseline), Xc = Xd + Xr, and its Cartesian PID (eq. 14-16). Each robot's
+builder (``loop.planar_arm``, ``loop.planar_gripper``) composes them with what is its own:
+its plant, its contact (the analytic wall of eq. 4, or Drake's contact engine), its plan,
+and how its points' torques reach the actuators. A sensor, a fault or a law added here
+reaches every robot.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from pydrake.common import RandomDistribution
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import (
+    Adder,
+    ConstantVectorSource,
+    Gain,
+    LogVectorOutput,
+    RandomSource,
+)
+
+from admittance.diagrams.robots.description import ForcePoint
+from admittance.systems.adaptive_impedance import AdaptiveImpedance
+from admittance.systems.cartesian_pid import CartesianPid
+from admittance.systems.classical_admittance import ClassicalAdmittance
+from admittance.systems.fixed_reference import FixedReference
+from admittance.systems.flexiforce import FlexiForceSensor
+from admittance.systems.optimal_admittance import OptimalAdmittance
+from admittance.systems.planar_kinematics import PlanarKinematics
+from admittance.systems.sensor_fault import SensorFault
+
+__all__ = [
+    "AddCommandedPosition",
+    "AddForceController",
+    "AddLoggers",
+    "AddPointKinematics",
+    "AddPointPid",
+    "AddSensorChain",
+    "SensorReading",
+]
+
+
+def AddPointKinematics(
+    builder: DiagramBuilder, plant: MultibodyPlant, point: ForcePoint
+) -> PlanarKinematics:
+    """X, dX/dt and J of the point's frame, once per evaluation, for its PID and contact."""
+    system = builder.AddSystem(
+        PlanarKinematics(
+            plant,
+            frame_name=point.frame,
+            coordinates=point.coordinates,
+            expressed_in=point.expressed_in,
+        )
+    )
+    system.set_name(point.system_name("fingertip_kinematics"))
+    builder.Connect(plant.get_state_output_port(), system.estimated_state_input)
+    return system
+
+
+@dataclass
+class SensorReading:
+    """A point's sensor chain as built: the FlexiForce (None for the ideal sensor, whose
+    reading is the true force itself), the port of the force it reports, its noise."""
+
+    sensor: FlexiForceSensor | None
+    measured_force_output: object
+    random_sources: list[RandomSource] = field(default_factory=list)
+
+
+def AddSensorChain(
+    builder: DiagramBuilder, point: ForcePoint, contact_force_output, *, noise: bool = True
+) -> SensorReading:
+    """The point's force sensor on the true contact force, its faults and its noise.
+
+    The ideal sensor is a wire: its reading is the contact force, with no system to
+    evaluate. Without `noise` (an analysis diagram) the noise input is held at zero.
+    """
+    chain = point.sensor
+    system = None
+    if chain.kind == "ideal":
+        measured_force_output = contact_force_output
+    else:
+        system = builder.AddSystem(
+            FlexiForceSensor(
+                kind=chain.kind, filter_cutoff_hz=chain.filter_cutoff, period=chain.period
+            )
+        )
+        system.set_name(point.system_name("flexiforce_sensor"))
+        builder.Connect(contact_force_output, system.contact_force_input)
+        measured_force_output = system.measured_force_output
+    if chain.faults:
+        fault = builder.AddSystem(SensorFault(list(chain.faults)))
+        fault.set_name(point.system_name("sensor_fault"))
+        builder.Connect(measured_force_output, fault.measured_force_input)
+        measured_force_output = fault.reported_force_output
+    random_sources = []
+    if system is None:
+        return SensorReading(system, measured_force_output, random_sources)
+    if noise and chain.noise_std > 0:
+        source = builder.AddSystem(
+            RandomSource(RandomDistribution.kGaussian, 1, chain.noise_period)
+        )
+        source.set_name(point.system_name("sensor_noise"))
+        random_sources.append(source)
+        gain = builder.AddSystem(Gain(chain.noise_std, 1))
+        gain.set_name(point.system_name("noise_std"))
+        builder.Connect(source.get_output_port(0), gain.get_input_port())
+        builder.Connect(gain.get_output_port(), system.noise_input)
+    else:
+        zero = builder.AddSystem(ConstantVectorSource([0.0]))
+        zero.set_name(point.system_name("no_noise"))
+        builder.Connect(zero.get_output_port(), system.noise_input)
+    return SensorReading(system, measured_force_output, random_sources)
+
+
+def AddPointPid(
+    builder: DiagramBuilder,
+    plant: MultibodyPlant,
+    point: ForcePoint,
+    kinematics: PlanarKinematics,
+    desired_velocity_output,
+) -> CartesianPid:
+    """The Cartesian PID of eq. 14-16 at the point (its Xc and its torques are wired by the
+    caller: through :func:`AddCommandedPosition`, and to the plant's actuation)."""
+    system = builder.AddSystem(
+        CartesianPid(
+            plant,
+            frame_name=point.frame,
+            kp=point.kp,
+            kd=point.kd,
+            ki=point.ki,
+            period=point.pid_period,
+            coordinates=point.coordinates,
+            expressed_in=point.expressed_in,
+        )
+    )
+    system.set_name(point.system_name("cartesian_pid"))
+    builder.Connect(kinematics.kinematics_output, system.kinematics_input)
+    builder.Connect(desired_velocity_output, system.commanded_velocity_input)
+    return system
+
+
+def AddForceController(builder: DiagramBuilder, point: ForcePoint):
+    """Adds the point's force controller (``point.law.kind``), named after its kind.
+
+    Returns:
+        the system, or None for pid_only (the PID then runs on Xd alone).
+    """
+    law, kind = point.law, point.law.kind
+    if kind == "pid_only":
+        return None
+    axes, size = list(point.force_axes), point.num_axes
+    if kind == "optimal_admittance":
+        system = OptimalAdmittance(
+            gamma=law.gamma,
+            alpha=law.alpha,
+            # K of eq. 10 is the PID's stiffness on the force axis (docs/paper-notes.md,
+            # section 4).
+            stiffness=point.stiffness,
+            force_axes=axes,
+            num_axes=size,
+            period=law.period,
+            max_push=law.max_push,
+            max_retract=law.max_retract,
+            max_force=law.max_force,
+            force_bound_gain=law.force_bound_gain,
+        )
+    elif kind == "fixed_reference":
+        position, stiffness = law.surface_estimate
+        system = FixedReference(
+            wall_position=position, wall_stiffness=stiffness, force_axes=axes, num_axes=size
+        )
+    elif kind == "classical_admittance":
+        gains = law.baseline
+        system = ClassicalAdmittance(
+            mass=gains["mass"],
+            damping=gains["damping"],
+            stiffness=gains["stiffness"],
+            force_axes=axes,
+            num_axes=size,
+        )
+    elif kind == "adaptive_impedance":
+        gains = law.baseline
+        system = AdaptiveImpedance(
+            mass=gains["mass"],
+            damping=gains["damping"],
+            adaptation_rate=gains["adaptation_rate"],
+            force_axes=axes,
+            num_axes=size,
+        )
+    else:  # each robot's validation admits only its kinds
+        raise ValueError(f"controller.kind: unknown kind {kind!r}")
+    builder.AddSystem(system)
+    system.set_name(point.system_name(kind))
+    return system
+
+
+def AddCommandedPosition(
+    builder: DiagramBuilder, point: ForcePoint, desired_position_output, pid: CartesianPid
+):
+    """Xc = Xd + Xr into the point's PID; returns the adder, whose input 1 takes Xr."""
+    commanded = builder.AddSystem(Adder(2, point.num_axes))
+    commanded.set_name(point.system_name("commanded_position"))
+    builder.Connect(desired_position_output, commanded.get_input_port(0))
+    builder.Connect(commanded.get_output_port(), pid.commanded_position_input)
+    return commanded
+
+
+def AddLoggers(builder: DiagramBuilder, ports: dict, period: float) -> dict:
+    """A VectorLogSink on each port, named log_<name> (period 0 = every step)."""
+    loggers = {}
+    for name, port in ports.items():
+        logger = LogVectorOutput(port, builder, period)
+        logger.set_name(f"log_{name}")
+        loggers[name] = logger
+    return loggers

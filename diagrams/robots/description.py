@@ -1,0 +1,102 @@
+"""One description of a force-controlled robot: its plant and its force-controlled points.
+
+The paper writes its loop (Fig. 1) for any serial arm with n joints whose task vector X
+has m coordinates. A robot here is its plant (model files, gravity, time step, built by
+the robot's module) and one or more force-controlled points. A :class:`ForcePoint` holds
+everything the loop needs at one point: the frame at the contact, its task coordinates
+and the frame they are expressed in, the axes under force control, the sensor chain
+(ideal or FlexiForce, with its noise and faults), the force law, and the PID's gains. The
+paper's arm has one point (its fingertip: x, y, theta in world, force along x); Drake's
+planar gripper has three (each fingertip: x, y in a frame at its planned face, force
+along the face's normal). The contact (the analytic wall of eq. 4, or Drake's contact
+engine) and the plan (Xd and Fr over time) are the robot's own, wired by its builder.
+
+``loop.point`` wires the loop of Fig. 1 at a point from this description alone.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+__all__ = ["ForceLaw", "ForcePoint", "SensorChain"]
+
+
+@dataclass
+class SensorChain:
+    """The force sensor at a point: what it reads, its filter, noise, readout and faults."""
+
+    # "ideal" (the true contact force: a wire, no system) or "flexiforce" (A201 + op-amp
+    # + analog low-pass + ADC noise).
+    kind: str = "ideal"
+    # Cut-off of the analog low-pass filter after the op-amp, Hz.
+    filter_cutoff: float = 5000.0
+    # Standard deviation of the measured-force noise at the ADC, N (0 = none).
+    noise_std: float = 0.0
+    # Sample period of the noise (the ADC's period), s.
+    noise_period: float = 0.005
+    # Readout period of the sensor, s (0 = a continuous output).
+    period: float = 0.0
+    # Injected sensor faults, (kind, start s, end s, value), kinds sensor_*.
+    faults: list[tuple[str, float, float, float]] = field(default_factory=list)
+
+
+@dataclass
+class ForceLaw:
+    """The force controller in front of the PID at a point, and its gains."""
+
+    # optimal_admittance (the paper's eq. 10), pid_only (none), fixed_reference (eq. 6),
+    # classical_admittance or adaptive_impedance (the baselines).
+    kind: str = "optimal_admittance"
+    # Gamma and alpha of eq. 10 on each force axis.
+    gamma: float = 1e-5
+    alpha: float = 0.0
+    # Sample period of the law, s (0 = continuous).
+    period: float = 0.0
+    # Travel bounds of Xr into and away from the surface, m (with anti-windup).
+    max_push: float = 0.01
+    max_retract: float = 0.1
+    # Fmax, an explicit upper bound on the force, N (.inf = none), and the weight mu of
+    # its penalty (docs/force-bound.md).
+    max_force: float = math.inf
+    force_bound_gain: float = 4.0
+    # The baselines' gains: mass, damping, stiffness, adaptation_rate.
+    baseline: dict[str, float] = field(default_factory=dict)
+    # fixed_reference's estimate of the surface: (position m, stiffness N/m).
+    surface_estimate: tuple[float, float] | None = None
+
+
+@dataclass
+class ForcePoint:
+    """One force-controlled point of a robot (see the module's docstring)."""
+
+    # What its systems' names start with ("" for a robot with one point).
+    name: str
+    # The frame at the contact point (a fingertip frame of the plant).
+    frame: str
+    # Task coordinates X of the frame, and the frame they are expressed in.
+    coordinates: tuple[str, ...] = ("x", "y", "theta")
+    expressed_in: str = "world"
+    # The axes of X under force control (the others follow Xd under the PID alone).
+    force_axes: tuple[int, ...] = (0,)
+    sensor: SensorChain = field(default_factory=SensorChain)
+    law: ForceLaw = field(default_factory=ForceLaw)
+    # The Cartesian PID's gains on each coordinate of X (eq. 14-16) and its period, s.
+    kp: list[float] = field(default_factory=list)
+    kd: list[float] = field(default_factory=list)
+    ki: list[float] = field(default_factory=list)
+    pid_period: float = 0.0
+
+    @property
+    def num_axes(self) -> int:
+        return len(self.coordinates)
+
+    @property
+    def stiffness(self) -> float:
+        """K of eq. 10: the PID's stiffness on the (first) force axis (docs/paper-notes.md,
+        section 4)."""
+        return float(self.kp[self.force_axes[0]])
+
+    def system_name(self, role: str) -> str:
+        """The name of this point's system that plays `role` (``finger1_cartesian_pid``)."""
+        return f"{self.name}_{role}" if self.name else role

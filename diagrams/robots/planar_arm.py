@@ -1,0 +1,189 @@
+"""The paper's planar arm: its MultibodyPlant from a URDF, its one force-controlled point
+(the fingertip against the wall), and inverse kinematics.
+
+Any planar URDF works: the kinematics come from the plant, not from hand-written formulas.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
+from pydrake.systems.framework import DiagramBuilder
+
+from admittance.diagrams.robots.description import ForceLaw, ForcePoint, SensorChain
+from admittance.diagrams.scenario.planar_arm import ArmConfig, Scenario
+from admittance.diagrams.scenario.schema import ScenarioError
+from admittance.systems.planar_kinematics import PlanarFrameKinematics
+
+__all__ = [
+    "WALL_NORMAL_AXIS",
+    "AddPlanarArm",
+    "AddScenarioArm",
+    "SolvePlanarInverseKinematics",
+    "baseline_gains",
+    "fingertip_point",
+]
+
+GRAVITY_W = np.array([0.0, -9.81, 0.0])
+# The wall-normal axis of X = (x, y, theta), the only force-controlled axis in the paper.
+WALL_NORMAL_AXIS = 0
+
+
+def AddPlanarArm(
+    builder: DiagramBuilder,
+    urdf: str | Path,
+    *,
+    fingertip_frame: str = "fingertip",
+    reflected_inertia: bool = False,
+):
+    """Adds the arm of the URDF file `urdf` as a continuous MultibodyPlant, gravity along -y.
+
+    Args:
+        urdf: the URDF file (a path; ``ArmConfig.urdf_path()`` resolves a scenario's).
+        fingertip_frame: the frame at the contact point, which the URDF must have.
+        reflected_inertia: keep the motors' reflected inertia (``drake:rotor_inertia`` and
+            ``drake:gear_ratio``); False zeroes it, the paper's rigid-body model.
+
+    Returns:
+        (plant, scene_graph), the plant finalized.
+
+    Raises:
+        ScenarioError: (arm.fingertip_frame) the URDF has no such frame.
+    """
+    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
+    plant.set_name("plant")
+    scene_graph.set_name("scene_graph")
+    Parser(plant).AddModels(str(urdf))
+    plant.mutable_gravity_field().set_gravity_vector(GRAVITY_W)
+    if not reflected_inertia:
+        for index in plant.GetJointActuatorIndices():
+            plant.get_mutable_joint_actuator(index).set_default_rotor_inertia(0.0)
+    plant.Finalize()
+    if not plant.HasFrameNamed(fingertip_frame):
+        raise ScenarioError(f"arm.fingertip_frame: the URDF has no frame named '{fingertip_frame}'")
+    return plant, scene_graph
+
+
+def AddScenarioArm(builder: DiagramBuilder, arm: ArmConfig):
+    """:func:`AddPlanarArm` with the settings of a scenario's `arm` section."""
+    return AddPlanarArm(
+        builder,
+        arm.urdf_path(),
+        fingertip_frame=arm.fingertip_frame,
+        reflected_inertia=arm.reflected_inertia,
+    )
+
+
+def SolvePlanarInverseKinematics(
+    plant: MultibodyPlant,
+    frame_name: str,
+    target,
+    joint_guess,
+    *,
+    tolerance: float = 1e-10,
+    max_iterations: int = 100,
+    coordinates: tuple[str, ...] = ("x", "y", "theta"),
+    expressed_in: str = "world",
+) -> np.ndarray:
+    """Joint positions that put `frame_name` at X = target, by Newton steps from a seed.
+
+    Uses the plant's own kinematics (so any planar URDF works); the seed picks the branch.
+    X is (x, y, theta) in world unless `coordinates` and `expressed_in` say otherwise (a
+    fingertip's (x, y) in its face's frame); the seed may hold every position of the plant,
+    and joints that do not move the frame keep their seed.
+
+    Raises:
+        ValueError: the target is not reached (out of the workspace, or singular).
+    """
+    kinematics = PlanarFrameKinematics(
+        plant, frame_name, coordinates=coordinates, expressed_in=expressed_in
+    )
+    angle = kinematics.angle_index
+    target = np.asarray(target, dtype=float)
+    q = np.zeros(plant.num_positions())
+    guess = np.asarray(joint_guess, dtype=float)
+    q[: min(q.size, guess.size)] = guess[: q.size]
+    v = np.zeros(plant.num_velocities())
+    for _ in range(max_iterations):
+        kinematics.set_state(np.concatenate([q, v]))
+        error = target - kinematics.pose()
+        if angle is not None:
+            error[angle] = np.arctan2(np.sin(error[angle]), np.cos(error[angle]))
+        if np.linalg.norm(error) < tolerance:
+            return q
+        step = np.linalg.lstsq(kinematics.jacobian(), error, rcond=None)[0]
+        # Limit each Newton step so that a far seed does not jump branches.
+        q = q + step * min(1.0, 0.5 / max(np.max(np.abs(step)), 1e-12))
+    raise ValueError(f"the pose {target.tolist()} is not reachable from the seed {guess.tolist()}")
+
+
+def baseline_gains(scenario: Scenario) -> dict[str, float]:
+    """The gains the baselines run with (matched to the paper's law, or manual).
+
+    Matched: the paper's law, with the PID's stiffness Kp, is an integrator of gain
+    Gamma Kp from force error to Xr, whose force loop crosses over at Kp Gamma Kp; the
+    classical admittance's damper 1 / (Gamma Kp) has the same crossover, critically damped
+    by its mass, and the adaptive impedance adapts five times slower (docs/comparison.md).
+    """
+    controller = scenario.controller
+    if controller.tuning == "manual":
+        return {
+            "mass": controller.mass,
+            "damping": controller.damping,
+            "stiffness": controller.stiffness,
+            "adaptation_rate": controller.adaptation_rate,
+        }
+    kp = scenario.pid.kp[WALL_NORMAL_AXIS]
+    integral_gain = scenario.admittance.gamma * kp  # Gamma K, m/(N s)
+    crossover = kp * integral_gain  # rad/s
+    damping = 1.0 / integral_gain
+    return {
+        "mass": damping**2 / (4.0 * kp),
+        "damping": damping,
+        "stiffness": 0.0,
+        "adaptation_rate": crossover / 5.0,
+    }
+
+
+def fingertip_point(scenario: Scenario) -> ForcePoint:
+    """The arm's one force-controlled point: the fingertip, X = (x, y, theta) in world,
+    force along the wall's normal (+x), with the scenario's sensor, law and PID."""
+    admittance, controller, wall = scenario.admittance, scenario.controller, scenario.wall
+    return ForcePoint(
+        name="",
+        frame=scenario.arm.fingertip_frame,
+        force_axes=(WALL_NORMAL_AXIS,),
+        sensor=SensorChain(
+            kind=scenario.sensor.kind,
+            filter_cutoff=scenario.sensor.filter_cutoff,
+            noise_std=scenario.sensor.noise_std,
+            noise_period=scenario.sensor.noise_period,
+            faults=[
+                (f.kind, f.start, f.end, f.value)
+                for f in scenario.faults
+                if f.kind.startswith("sensor_")
+            ],
+        ),
+        law=ForceLaw(
+            kind=scenario.controller_kind,
+            gamma=admittance.gamma,
+            alpha=admittance.alpha,
+            period=admittance.period,
+            max_push=admittance.max_push,
+            max_retract=admittance.max_retract,
+            max_force=admittance.max_force,
+            force_bound_gain=admittance.force_bound_gain,
+            baseline=baseline_gains(scenario),
+            surface_estimate=(
+                wall.position + controller.wall_position_error,
+                wall.stiffness * (1.0 + controller.stiffness_error),
+            ),
+        ),
+        kp=list(scenario.pid.kp),
+        kd=list(scenario.pid.kd),
+        ki=list(scenario.pid.ki),
+        pid_period=scenario.pid.period,
+    )

@@ -1,0 +1,79 @@
+"""Metrics shared by every robot: time-weighted means, windows, settling, contact.
+
+The thresholds that define "settled", "steady state" and "in contact" are stated once here
+and used by the arm's and the hand's metrics alike.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+# Window over which "steady state" and "before an event" errors are averaged, s.
+STEADY_WINDOW = 1.0
+# Band around Fr that counts as settled (relative).
+SETTLE_BAND = 0.05
+# With sensor noise, settling is judged on the force averaged over this many noise samples,
+# so that the ripple the noise leaves on the force (which no controller removes) does not
+# hide that the loop has settled. Without noise the raw force is used.
+SETTLE_AVERAGE_SAMPLES = 4
+# A force above this fraction of Fr counts as contact (the tip may start touching the wall
+# with zero force, which is not yet a contact).
+CONTACT_FRACTION = 0.01
+
+
+def time_mean(time: np.ndarray, values: np.ndarray) -> float:
+    """Time-weighted mean (trapezoid) of samples at irregular times."""
+    if time.size < 2 or time[-1] <= time[0]:
+        return float(np.mean(values)) if values.size else math.nan
+    return float(np.trapezoid(values, time) / (time[-1] - time[0]))
+
+
+def window_mask(time: np.ndarray, start: float, end: float) -> np.ndarray:
+    return (time >= start) & (time <= end)
+
+
+def until_mask(time: np.ndarray, start: float, end: float) -> np.ndarray:
+    """Samples in [start, end): at `end` the next event has happened (a sample logged at
+    that very instant, as a sampled controller's step gives, already shows it). The run's
+    last sample is kept when `end` is the end of the run."""
+    if time.size and end >= time[-1]:
+        return window_mask(time, start, end)
+    return (time >= start) & (time < end)
+
+
+def trailing_average(time: np.ndarray, values: np.ndarray, window: float) -> np.ndarray:
+    """Mean of `values` over [t - window, t] at each sample (trapezoid, irregular times)."""
+    integral = np.concatenate([[0.0], np.cumsum(np.diff(time) * 0.5 * (values[1:] + values[:-1]))])
+    start = np.maximum(time - window, time[0])
+    span = time - start
+    averaged = values.astype(float).copy()
+    ok = span > 0
+    averaged[ok] = (integral[ok] - np.interp(start[ok], time, integral)) / span[ok]
+    return averaged
+
+
+def settled_from(time, force, reference, start, end=math.inf) -> float | None:
+    """The time from which |F - Fr| <= SETTLE_BAND Fr holds until `end` (exclusive; the
+    run's last sample counts when `end` is the run's end), looking from `start` on.
+
+    Returns `start` itself if the force never leaves the band, None if it is outside the
+    band at the end (or there is no sample). `force` may be averaged first to ignore noise
+    ripple (see the arm's compute_metrics).
+    """
+    mask = until_mask(time, start, end)
+    t = time[mask]
+    outside = np.abs(force[mask] - reference) > SETTLE_BAND * reference
+    if t.size == 0 or outside[-1]:
+        return None
+    if not outside.any():
+        return start
+    return float(t[np.nonzero(outside)[0][-1] + 1])
+
+
+def settling_time(time, force, reference, event_time, end_time) -> float | None:
+    """Time after `event_time` from which |F - Fr| <= 5 % Fr until `end_time` (exclusive):
+    :func:`settled_from`, counted from the event (None: not settled)."""
+    settled = settled_from(time, force, reference, event_time, end_time)
+    return None if settled is None else float(settled - event_time)

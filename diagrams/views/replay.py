@@ -1,0 +1,347 @@
+"""Meshcat replays of a run: one self-contained HTML file, made after the run.
+
+A replay is built from the logged data on a small diagram of its own (the robot's plant +
+SceneGraph + MeshcatVisualizer), so the simulated loop never carries a visualizer
+(analysis diagrams stay visualizer-free, so that they convert to AutoDiffXd). This module
+holds what every robot's replay uses (:class:`Replay`, :class:`ForceArrow`, the frame
+times, the view bounds, the arrow scale, the atomic write) and the arm's replay,
+:func:`write_meshcat_replay`: the arm, the wall at Xe(t) and the contact force as an arrow,
+animated in a 2-D view of the x-y plane. The gripper's is ``views.gripper_replay``;
+``views.figures.write_replay`` picks the robot's.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from pydrake.geometry import (
+    Box,
+    Meshcat,
+    MeshcatCone,
+    MeshcatParams,
+    MeshcatVisualizer,
+    MeshcatVisualizerParams,
+    Rgba,
+    Role,
+    Sphere,
+)
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.tree import BodyIndex
+from pydrake.systems.framework import (
+    DiagramBuilder,
+)
+
+from admittance.diagrams.robots.planar_arm import AddScenarioArm
+from admittance.diagrams.run.planar_arm import SimulationResult
+
+__all__ = [
+    "write_meshcat_replay",
+]
+
+# ---------------------------------------------------------------------------- replay
+
+# Frames per second of simulated time in the replay (it plays back in real time). A power of
+# two, so that frame k's time k / fps is exact and Meshcat's frame(time) = floor(time * fps)
+# gives back k (with 50 fps, 29 / 50 * 50 = 28.999... would land on frame 28).
+REPLAY_FRAMES_PER_SECOND = 32.0
+# Length of the force arrow per newton of contact force, m/N ...
+FORCE_ARROW_METERS_PER_NEWTON = 0.01
+# ... unless the peak force would draw longer than this, m: then the scale shrinks so that
+# the peak fits (the arrow stays proportional to the force within one replay).
+FORCE_ARROW_MAX_LENGTH = 0.25
+# Margin around everything drawn, m.
+VIEW_MARGIN = 0.05
+# The view shows its whole x range in any window at least this many times wider than tall.
+VIEW_ASPECT = 1.4
+# Wall slab thickness along x, m (it spans the view's height).
+WALL_THICKNESS = 0.03
+# Heights (world z) at which the overlays are drawn: the camera looks down -z, so a larger
+# z is drawn on top. The arm's drive cylinders reach z = 0.055.
+WALL_Z = 0.0
+FORCE_Z = 0.08
+# Paths in the Meshcat scene tree.
+WALL_PATH = "/replay/wall"
+FORCE_PATH = "/replay/force"
+FORCE_REFERENCE_PATH = "/replay/force_reference"
+COMMANDED_PATH = "/replay/commanded_position"
+
+_WALL_COLOR = Rgba(0.55, 0.42, 0.30, 0.75)
+_FORCE_COLOR = Rgba(0.85, 0.10, 0.10, 1.0)
+_REFERENCE_COLOR = Rgba(0.10, 0.45, 0.85, 0.9)
+_COMMANDED_COLOR = Rgba(0.10, 0.60, 0.20, 0.9)
+
+_ARROW_SHAFT_WIDTH = 0.008
+_ARROW_HEAD_LENGTH = 0.02
+_ARROW_HEAD_RADIUS = 0.012
+# A zero-length shaft is drawn with this scale (three.js dislikes a singular scale).
+_TINY_SCALE = 1e-4
+
+
+def staging_path(path: Path) -> Path:
+    """A new hidden sibling of `path`, to write into before moving it onto `path`.
+
+    (Unlike tempfile's files, it gets the usual permissions of a new file.)
+    """
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}{path.suffix}")
+
+
+def write_atomically(path: Path, data: bytes) -> None:
+    """Writes `data` to a sibling file, then moves it onto `path`: no half-written file."""
+    staging = staging_path(path)
+    try:
+        staging.write_bytes(data)
+        os.replace(staging, path)
+    finally:
+        staging.unlink(missing_ok=True)
+
+
+def _quiet_meshcat() -> Meshcat:
+    """A Meshcat on localhost, without its "listening for connections" message.
+
+    The server lives only while the replay is recorded: pointing a user at it would mislead.
+    """
+    drake_logger = logging.getLogger("drake")
+    level = drake_logger.level
+    drake_logger.setLevel(logging.WARNING)
+    try:
+        return Meshcat(MeshcatParams(host="localhost"))
+    finally:
+        drake_logger.setLevel(level)
+
+
+def frame_times(time: np.ndarray) -> np.ndarray:
+    """Replay times k / fps over the logged span, for consecutive integers k."""
+    first = math.ceil(float(time[0]) * REPLAY_FRAMES_PER_SECOND - 1e-9)
+    last = math.floor(float(time[-1]) * REPLAY_FRAMES_PER_SECOND + 1e-9)
+    return np.arange(first, max(last, first + 1) + 1) / REPLAY_FRAMES_PER_SECOND
+
+
+def interpolate(time: np.ndarray, values: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Linear interpolation of the columns of `values` (N,) or (N, k) at times `at`."""
+    if values.ndim == 1:
+        return np.interp(at, time, values)
+    return np.column_stack([np.interp(at, time, column) for column in values.T])
+
+
+def view_bounds(points_xy: np.ndarray) -> tuple[float, float, float, float]:
+    """(xmin, xmax, ymin, ymax) around `points_xy`, with a margin and a landscape aspect.
+
+    Meshcat fits the y range to the window's height and centres the x range; the y range is
+    widened so that the x range fits any window at least VIEW_ASPECT times wider than tall.
+    """
+    low = points_xy.min(axis=0) - VIEW_MARGIN
+    high = points_xy.max(axis=0) + VIEW_MARGIN
+    center = 0.5 * (low + high)
+    half_height = max(0.5 * (high[1] - low[1]), 0.5 * (high[0] - low[0]) / VIEW_ASPECT)
+    bottom, top = center[1] - half_height, center[1] + half_height
+    return float(low[0]), float(high[0]), float(bottom), float(top)
+
+
+def arrow_scale(forces: np.ndarray, meters_per_newton: float, max_length: float) -> float:
+    """Arrow length per newton, m/N: `meters_per_newton`, or less if the largest of `forces`
+    would draw longer than `max_length` (the arrows stay proportional within a replay)."""
+    peak = float(forces.max()) if forces.size else 0.0
+    if peak * meters_per_newton > max_length:
+        return max_length / peak
+    return meters_per_newton
+
+
+# The cone's apex is at its origin and it opens along +z: turned to open along -x, its apex
+# points along +x.
+_HEAD_ALONG_X = RotationMatrix.MakeYRotation(-math.pi / 2)
+
+
+@dataclass(frozen=True)
+class ForceArrow:
+    """A force arrow in a replay: a box shaft and a cone head, set to a length per frame."""
+
+    path: str
+    shaft_width: float
+    head_length: float
+    head_radius: float
+    color: Rgba
+
+    def add_to(self, meshcat: Meshcat) -> None:
+        width = self.shaft_width
+        meshcat.SetObject(f"{self.path}/shaft", Box(1.0, width, width), self.color)
+        meshcat.SetObject(
+            f"{self.path}/head",
+            MeshcatCone(self.head_length, self.head_radius, self.head_radius),
+            self.color,
+        )
+
+    def animate(self, animation, frame: int, start, length: float, rotation=None) -> None:
+        """The arrow from `start`, `length` long, along +x turned by `rotation` (None: +x).
+
+        The shaft reaches the head's base and the head shrinks with an arrow shorter than
+        itself; an arrow of no length is hidden.
+        """
+        direction = np.array([1.0, 0.0, 0.0]) if rotation is None else rotation.col(0)
+        head_rotation = _HEAD_ALONG_X if rotation is None else rotation @ _HEAD_ALONG_X
+        shaft_rotation = RotationMatrix() if rotation is None else rotation
+        head_scale = min(1.0, length / self.head_length)
+        shaft = max(length - self.head_length, _TINY_SCALE)
+        animation.SetProperty(frame, self.path, "visible", bool(length > _TINY_SCALE))
+        animation.SetTransform(
+            frame,
+            f"{self.path}/shaft",
+            RigidTransform(shaft_rotation, start + 0.5 * shaft * direction),
+        )
+        animation.SetProperty(frame, f"{self.path}/shaft", "scale", [shaft, 1.0, 1.0])
+        animation.SetTransform(
+            frame, f"{self.path}/head", RigidTransform(head_rotation, start + length * direction)
+        )
+        animation.SetProperty(
+            frame, f"{self.path}/head", "scale", [max(head_scale, _TINY_SCALE)] * 3
+        )
+
+
+class Replay:
+    """The small diagram a replay is recorded on: a model's illustration geometry (its
+    plant and SceneGraph, added to `builder`) drawn by a MeshcatVisualizer on a Meshcat
+    served on localhost for the time of the call."""
+
+    def __init__(self, builder: DiagramBuilder, plant, scene_graph) -> None:
+        self.plant = plant
+        self.meshcat = _quiet_meshcat()
+        self.visualizer = MeshcatVisualizer.AddToBuilder(
+            builder,
+            scene_graph,
+            self.meshcat,
+            MeshcatVisualizerParams(
+                role=Role.kIllustration, publish_period=1.0 / REPLAY_FRAMES_PER_SECOND
+            ),
+        )
+        self.diagram = builder.Build()
+        self.context = self.diagram.CreateDefaultContext()
+        self.plant_context = plant.GetMyMutableContextFromRoot(self.context)
+
+    def body_positions(self, joint_positions: np.ndarray, bodies) -> np.ndarray:
+        """The origins of `bodies` in world at each row of `joint_positions`, (n * b, 3)."""
+        plant, plant_context = self.plant, self.plant_context
+        points = []
+        for q in joint_positions:
+            plant.SetPositions(plant_context, q)
+            points.append(
+                [plant.EvalBodyPoseInWorld(plant_context, b).translation() for b in bodies]
+            )
+        return np.vstack(points)
+
+    def record(
+        self,
+        times: np.ndarray,
+        joint_positions: np.ndarray,
+        draw_overlays: Callable[[object, int, int], None],
+    ) -> None:
+        """Records the model posed at `joint_positions[k]` at `times[k]`; the overlays of
+        each frame are set by ``draw_overlays(animation, frame, k)``."""
+        animation = self.visualizer.StartRecording(set_transforms_while_recording=False)
+        for index, t in enumerate(times):
+            self.context.SetTime(float(t))
+            self.plant.SetPositions(self.plant_context, joint_positions[index])
+            self.diagram.ForcedPublish(self.context)
+            draw_overlays(animation, animation.frame(float(t)), index)
+        self.visualizer.StopRecording()
+        self.visualizer.PublishRecording()
+
+    def write(self, path: Path, X_WCamera: RigidTransform, bounds) -> Path:
+        """The orthographic view of `bounds` (xmin, xmax, ymin, ymax in the camera's plane)
+        from `X_WCamera`, and the recording, as one HTML file written atomically."""
+        xmin, xmax, ymin, ymax = bounds
+        self.meshcat.Set2dRenderMode(X_WC=X_WCamera, xmin=xmin, xmax=xmax, ymin=ymin, ymax=ymax)
+        write_atomically(path, self.meshcat.StaticHtml().encode("utf-8"))
+        return path
+
+
+def write_meshcat_replay(result: SimulationResult, path: str | os.PathLike) -> Path:
+    """Writes a self-contained HTML replay of a finished run, viewable offline.
+
+    The arm (illustration geometry of the scenario's URDF) is posed at the logged joint
+    positions, REPLAY_FRAMES_PER_SECOND frames per simulated second; the wall is a slab whose
+    face is at Xe(t); a red arrow from the fingertip into the wall has a length proportional
+    to the true contact force (FORCE_ARROW_METERS_PER_NEWTON, less if the peak would not
+    fit), a blue tick marks the length of Fr on the same scale, and a green dot marks the
+    commanded position Xc = Xd + Xr. The view is orthographic onto the x-y plane: +x to the
+    right, +y (against gravity) up, scaled to fit the window's height. The animation plays
+    once, in real time, when the file is opened and holds its last frame; Meshcat's "Open
+    Controls" menu (Animations) plays it again, pauses it, changes its speed or scrubs it.
+
+    The replay is made on a diagram of its own (the scenario's arm, a SceneGraph and a
+    MeshcatVisualizer on a Meshcat served on localhost for the time of the call).
+
+    Args:
+        result: a finished run (``run_scenario``).
+        path: the HTML file to write; its folder is created if needed.
+
+    Returns:
+        The path written.
+    """
+    path = Path(path)
+    scenario = result.scenario
+    times = frame_times(result.time)
+    joint_positions = interpolate(result.time, result.joint_positions, times)
+    tip_xy = interpolate(result.time, result.pose[:, :2], times)
+    wall_position = interpolate(result.time, result.wall_position, times)
+    force = np.maximum(interpolate(result.time, result.force, times), 0.0)
+    commanded_xy = interpolate(
+        result.time, (result.desired_position + result.reference_offset)[:, :2], times
+    )
+    meters_per_newton = arrow_scale(force, FORCE_ARROW_METERS_PER_NEWTON, FORCE_ARROW_MAX_LENGTH)
+    arrow_length = force * meters_per_newton
+    reference_length = scenario.force_reference * meters_per_newton
+
+    builder = DiagramBuilder()
+    replay = Replay(builder, *AddScenarioArm(builder, scenario.arm))
+    plant = replay.plant
+
+    # Fit the view around everything drawn: every body of the arm over the run, the wall's
+    # face, the longest arrow and the commanded position.
+    bodies = [plant.get_body(BodyIndex(index)) for index in range(1, plant.num_bodies())]
+    points = [tip_xy, commanded_xy, np.column_stack([wall_position, tip_xy[:, 1]])]
+    points.append(np.column_stack([tip_xy[:, 0] + arrow_length, tip_xy[:, 1]]))
+    points.append(replay.body_positions(joint_positions, bodies)[:, :2])
+    xmin, xmax, ymin, ymax = view_bounds(np.vstack(points))
+
+    # The overlays; their poses are animated below. The wall spans the view's height.
+    meshcat = replay.meshcat
+    wall_height = (ymax - ymin) + 2.0 * VIEW_MARGIN
+    meshcat.SetObject(WALL_PATH, Box(WALL_THICKNESS, wall_height, 0.02), _WALL_COLOR)
+    # The arrow points along +x, the direction of the force the fingertip applies to the wall.
+    arrow = ForceArrow(
+        FORCE_PATH, _ARROW_SHAFT_WIDTH, _ARROW_HEAD_LENGTH, _ARROW_HEAD_RADIUS, _FORCE_COLOR
+    )
+    arrow.add_to(meshcat)
+    meshcat.SetObject(FORCE_REFERENCE_PATH, Box(0.003, 0.04, 0.003), _REFERENCE_COLOR)
+    meshcat.SetObject(COMMANDED_PATH, Sphere(0.005), _COMMANDED_COLOR)
+    wall_y = 0.5 * (ymin + ymax)
+
+    def draw_overlays(animation, frame: int, index: int) -> None:
+        tip, xc = tip_xy[index], commanded_xy[index]
+        animation.SetTransform(
+            frame,
+            WALL_PATH,
+            RigidTransform([wall_position[index] + 0.5 * WALL_THICKNESS, wall_y, WALL_Z]),
+        )
+        arrow.animate(animation, frame, np.array([tip[0], tip[1], FORCE_Z]), arrow_length[index])
+        animation.SetTransform(
+            frame,
+            FORCE_REFERENCE_PATH,
+            RigidTransform([tip[0] + reference_length, tip[1], FORCE_Z + 0.001]),
+        )
+        animation.SetTransform(
+            frame, COMMANDED_PATH, RigidTransform([xc[0], xc[1], FORCE_Z - 0.002])
+        )
+
+    replay.record(times, joint_positions, draw_overlays)
+    # Camera above the plane looking down -z (its +y axis) with world +y up (its +z axis):
+    # its x axis is then world +x, drawn to the right.
+    X_WC = RigidTransform(RotationMatrix.MakeXRotation(-math.pi / 2), [0.0, 0.0, 1.0])
+    return replay.write(path, X_WC, (xmin, xmax, ymin, ymax))

@@ -1,0 +1,82 @@
+"""One loop for every robot: every built-in scenario through the same public builder, the
+same wiring at every force-controlled point, the same run path and the same metrics."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from admittance.diagrams.loop import BuildLoop
+from admittance.diagrams.robots import ForcePoint, finger_points, fingertip_point
+from admittance.diagrams.run.metrics import SETTLE_BAND, settled_from, settling_time, time_mean
+from admittance.diagrams.scenario import GraspScenario, builtin_scenario_names, load_scenario
+
+# The systems that the shared steps of loop.point add at every point, whatever the robot.
+SHARED_ROLES = ("fingertip_kinematics", "cartesian_pid")
+
+
+def _points(scenario) -> list[ForcePoint]:
+    if isinstance(scenario, GraspScenario):
+        return finger_points(scenario)
+    return [fingertip_point(scenario)]
+
+
+@pytest.mark.parametrize("name", builtin_scenario_names())
+def test_every_builtin_scenario_builds_through_the_one_builder(name):
+    """Each point of the robot's description gets its kinematics, its PID, its sensor
+    chain and its force law from the same steps, named after the point."""
+    scenario = load_scenario(name)
+    loop = BuildLoop(scenario)
+    names = {loop.diagram.GetSystems()[i].get_name() for i in range(len(loop.diagram.GetSystems()))}
+    points = _points(scenario)
+    assert len(points) == (3 if isinstance(scenario, GraspScenario) else 1)
+    for point in points:
+        for role in SHARED_ROLES:
+            assert point.system_name(role) in names, (name, point.name, role)
+        if point.sensor.kind == "flexiforce":
+            assert point.system_name("flexiforce_sensor") in names
+        layer = getattr(getattr(scenario, "safety", None), "enabled", False)
+        if point.law.kind != "pid_only" and not layer:
+            assert point.system_name(point.law.kind) in names
+    # One actuation input: every point's PID drives the one plant.
+    assert loop.plant.get_actuation_input_port().size() == loop.plant.num_actuated_dofs()
+
+
+def test_a_point_describes_the_paper_arm_and_each_finger_alike():
+    arm = fingertip_point(load_scenario("paper_stiffness_step"))
+    assert (arm.coordinates, arm.expressed_in, arm.force_axes) == (
+        ("x", "y", "theta"),
+        "world",
+        (0,),
+    )
+    # K of eq. 10 is the PID's stiffness on the force axis.
+    assert arm.stiffness == load_scenario("paper_stiffness_step").pid.kp[0]
+    fingers = finger_points(load_scenario("grasp_hold"))
+    assert [f.name for f in fingers] == ["finger1", "finger2", "finger3"]
+    for finger in fingers:
+        assert finger.coordinates == ("x", "y") and finger.force_axes == (0,)
+        assert finger.expressed_in.startswith(finger.name)
+        # The sampled hand: the sensor, the law and the PID at the plant's time step.
+        assert finger.sensor.period == finger.law.period == finger.pid_period == 0.001
+
+
+def test_settling_is_measured_alike_for_every_robot():
+    """By hand: Fr = 1 N, the band is +-SETTLE_BAND N; samples every 0.1 s."""
+    time = np.round(np.arange(0.0, 1.01, 0.1), 10)
+    force = np.array([0.0, 0.5, 0.9, 1.2, 0.96, 1.02, 1.0, 1.0, 0.99, 1.01, 1.0])
+    assert SETTLE_BAND == 0.05
+    # The last sample outside the band is 1.2 at 0.3 s (0.96 is inside): settled at 0.4 s.
+    assert settled_from(time, force, 1.0, 0.0) == pytest.approx(0.4)
+    assert settling_time(time, force, 1.0, 0.2, math.inf) == pytest.approx(0.2)
+    # From 0.4 s on it never leaves the band: settled from the start of the look.
+    assert settled_from(time, force, 1.0, 0.4) == 0.4
+    # Outside at the end: not settled.
+    assert settled_from(time, np.where(time > 0.95, 2.0, force), 1.0, 0.0) is None
+    # The look ends before `end` (exclusive), as a disturbance ends the hold: still
+    # outside at 0.2 s when the look ends at 0.3 s; settled at 0.4 s when it ends at 0.95 s.
+    assert settled_from(time, force, 1.0, 0.0, 0.3) is None
+    assert settled_from(time, force, 1.0, 0.0, 0.95) == pytest.approx(0.4)
+    # Trapezoid mean of a ramp 0..1 over 1 s is 0.5.
+    assert time_mean(time, time) == pytest.approx(0.5)
