@@ -282,10 +282,19 @@ def stepped_forces(loop: GraspLoop, context: Context) -> np.ndarray:
     return sensor.normal_force_output.Eval(sensor.GetMyContextFromRoot(working)).copy()
 
 
+def _near_neutral(eigenvalues: np.ndarray, period: float) -> np.ndarray:
+    """Which z have a growth rate |ln|z|| / period below NEUTRAL_RESOLUTION (a growing
+    mode faster than that is not near-neutral: it stays in the analysis)."""
+    magnitude = np.abs(eigenvalues)
+    growth = np.full(magnitude.shape, np.inf)
+    growth[magnitude > 0] = np.abs(np.log(magnitude[magnitude > 0])) / period
+    return growth < NEUTRAL_RESOLUTION
+
+
 def _resolved_basis(A: np.ndarray, period: float) -> np.ndarray:
     """An orthonormal basis of the invariant subspace without the near-neutral modes."""
     eigenvalues, left = np.linalg.eig(A.T)
-    neutral = np.abs(eigenvalues) > math.exp(-NEUTRAL_RESOLUTION * period)
+    neutral = _near_neutral(eigenvalues, period)
     if not np.any(neutral):
         return np.eye(A.shape[0])
     vectors = left[:, neutral]
@@ -362,14 +371,14 @@ def critical_finger_gammas(equilibrium: GraspEquilibrium, A: np.ndarray | None =
 
 
 def without_near_neutral_modes(A: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:
-    """A on the invariant subspace that leaves out its near-neutral modes (|z| above
-    exp(-NEUTRAL_RESOLUTION period)), and their eigenvalues z.
+    """A on the invariant subspace that leaves out its near-neutral modes (|ln|z|| / period
+    below NEUTRAL_RESOLUTION), and their eigenvalues z.
 
     The subspace is the null space of those modes' left eigenvectors (Y^T A = Z Y^T, so
     Y^T x = 0 stays 0 under A); on an orthonormal basis U of it, A acts as U^T A U.
     """
     eigenvalues = np.linalg.eigvals(A)
-    neutral = eigenvalues[np.abs(eigenvalues) > math.exp(-NEUTRAL_RESOLUTION * period)]
+    neutral = eigenvalues[_near_neutral(eigenvalues, period)]
     basis = _resolved_basis(A, period)
     return basis.T @ A @ basis, neutral
 

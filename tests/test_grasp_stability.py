@@ -96,6 +96,16 @@ def test_every_mode_is_stable_at_the_default_gains(held):
     assert abs(force_mode.imag) == pytest.approx(70.7, abs=0.5)
 
 
+def test_a_growing_mode_is_never_taken_for_a_near_neutral_one():
+    h = 1e-3
+    similarity = np.random.default_rng(0).normal(size=(4, 4))
+    A = similarity @ np.diag([1.02, 0.999995, 0.5, 1.0000001]) @ np.linalg.inv(similarity)
+    reduced, neutral = without_near_neutral_modes(A, h)
+    np.testing.assert_allclose(np.sort(neutral.real), [0.999995, 1.0000001])
+    np.testing.assert_allclose(np.sort(np.linalg.eigvals(reduced).real), [0.5, 1.02])
+    assert not lyapunov_certificate(reduced, discrete=True)["positive_definite"]
+
+
 def test_gamma_enters_a_through_the_held_offsets_row_alone(held):
     """A at 1.3 Gamma from the row scaling against a loop built at 1.3 Gamma (the same
     physical state: z = Xr / (Gamma K))."""
