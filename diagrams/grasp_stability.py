@@ -2,9 +2,11 @@
 
 The grasp runs on a discrete plant (SAP, point contact) with every controller and sensor
 readout sampled at the same ``time_step`` h. Drake's ``Linearize`` refuses that plant (its
-sampled output ports are abstract state), and the continuous build cannot be converted to
-AutoDiffXd (no penetration query between two boxes: the brick and the fingers' links). So
-the loop that actually runs is linearized as what it is, a map over one period:
+sampled output ports are abstract state). The continuous build (time_step = 0) converts to
+AutoDiffXd, but its Linearize stops in the point-contact forces (Drake 1.51 asks the
+geometries' Hunt-Crossley dissipation as AutoDiffXd, stored as double), and it would not be
+the loop that runs anyway: the sampling sets the critical Gamma. So the loop that actually
+runs is linearized as what it is, a map over one period:
 
     x[k+1] = f(x[k]),   A = df/dx   (central finite differences of one simulator step),
 
@@ -93,8 +95,7 @@ def static_grasp(scenario: GraspScenario) -> GraspScenario:
     if scenario.time_step <= 0:
         raise ScenarioError(
             "time_step: the grasp's stability is analysed for the sampled loop that runs "
-            "(time_step > 0); the continuous plant cannot be linearized (no AutoDiffXd "
-            "penetration query between two boxes)"
+            "(time_step > 0); Drake cannot linearize the continuous plant's point contact"
         )
     if scenario.controller.kind != "optimal_admittance":
         raise ScenarioError(
