@@ -76,7 +76,8 @@ def _arm_scenario(args: argparse.Namespace):
     if isinstance(scenario, GraspScenario):
         raise ScenarioError(
             f"scenario: '{args.scenario}' is a grasp scenario (kind: grasp); `admittance "
-            f"{args.command}` runs arm scenarios only (grasps: simulate, diagram, grasp-compare)"
+            f"{args.command}` runs arm scenarios only (grasps: simulate, diagram, stability, "
+            "grasp-compare)"
         )
     return scenario
 
@@ -266,11 +267,17 @@ def _cmd_stability(args: argparse.Namespace, progress) -> int:
         write_report,
     )
     from admittance.diagrams.loop.planar_arm import CheckScenarioStarts
+    from admittance.diagrams.scenario.files import load_scenario
+    from admittance.diagrams.scenario.planar_gripper import GraspScenario
 
-    scenario = _arm_scenario(args)
+    scenario = load_scenario(args.scenario, args.overrides)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_stability"
-    axes = MapAxes.quick() if args.quick else MapAxes()
     check_output_dir(out, overwrite=args.force)
+    if isinstance(scenario, GraspScenario):
+        from admittance.diagrams.app.grasp_stability_report import grasp_stability_command
+
+        return grasp_stability_command(scenario, out, args, progress)
+    axes = MapAxes.quick() if args.quick else MapAxes()
     CheckScenarioStarts(scenario)
     report = analyse(scenario, axes=axes, with_trajectory=not args.no_trajectory, progress=progress)
     progress(f"writing {out}/")
