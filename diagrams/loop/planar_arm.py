@@ -10,7 +10,9 @@ Xd --(+)--> Xc --> CartesianPid --tau--> plant --state--> PlanarKinematics
 The fingertip's kinematics are computed once per evaluation and read by the PID and the
 wall; the wall's force reaches the plant as generalized forces (the force at the fingertip
 through the Jacobian's x row); with the ideal sensor (the paper's simulation) Fm is the
-wall's F itself.
+wall's F itself. The arm is one force-controlled point (robots.planar_arm.fingertip_point),
+wired by the steps every robot shares (loop.point); what is the arm's own here is the plan
+of eq. 19, the wall, the safety layer, and the checks that the arm can start.
 """
 
 from __future__ import annotations

@@ -1,10 +1,11 @@
-"""The paper's loop on a hand: Drake's planar gripper holding its brick, one force loop per finger.
+"""The hand: Drake's planar gripper holding its brick, and its three force-controlled points.
 
-The paper closes with "future applications to manipulation and grasping tasks". This builder
+The paper closes with "future applications to manipulation and grasping tasks". This module
 loads Drake's three-fingered planar gripper and its brick from the installed drake package
 (``package://drake/examples/planar_gripper/``), welds the fingers around the brick as Drake's
-planar gripper example does, in the vertical y-z plane with gravity along -z, and wires one
-copy of the paper's Fig. 1 per finger:
+planar gripper example does, in the vertical y-z plane with gravity along -z, and describes
+each fingertip as a force-controlled point (:func:`finger_points`); ``loop.planar_gripper``
+wires one copy of the paper's Fig. 1 per finger from that description:
 
     Xd_i --(+)--> Xc_i --> CartesianPid_i --tau_i--(+)--> plant --contact results--+
            ^ Xr_i             (tip's (x, y) in its face's frame)                    |
