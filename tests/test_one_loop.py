@@ -10,7 +10,18 @@ import pytest
 
 from admittance.diagrams.loop import BuildLoop
 from admittance.diagrams.robots import ForcePoint, finger_points, fingertip_point
-from admittance.diagrams.run.metrics import SETTLE_BAND, settled_from, settling_time, time_mean
+from admittance.diagrams.run.metrics import (
+    CONTACT_FRACTION,
+    SETTLE_BAND,
+    STEADY_WINDOW,
+    contact_loss_indices,
+    final_window,
+    first_contact_time,
+    in_contact,
+    settled_from,
+    settling_time,
+    time_mean,
+)
 from admittance.diagrams.scenario import GraspScenario, builtin_scenario_names, load_scenario
 
 # The systems that the shared steps of loop.point add at every point, whatever the robot.
@@ -80,3 +91,19 @@ def test_settling_is_measured_alike_for_every_robot():
     assert settled_from(time, force, 1.0, 0.0, 0.95) == pytest.approx(0.4)
     # Trapezoid mean of a ramp 0..1 over 1 s is 0.5.
     assert time_mean(time, time) == pytest.approx(0.5)
+
+
+def test_contact_is_counted_alike_for_every_robot():
+    """By hand: Fr = 2 N, so contact is a force above CONTACT_FRACTION * 2 N = 0.02 N."""
+    assert CONTACT_FRACTION == 0.01
+    time = np.arange(8) * 0.5
+    force = np.array([0.0, 0.01, 0.5, 2.0, 0.015, 1.0, 0.0, 2.0])
+    contact = in_contact(force, 2.0)
+    assert contact.tolist() == [False, False, True, True, False, True, False, True]
+    assert first_contact_time(time, contact) == 1.0
+    assert first_contact_time(time, np.zeros(8, dtype=bool)) is None
+    # Lost after 1.5 s (index 3) and after 2.5 s (index 5).
+    assert contact_loss_indices(contact).tolist() == [3, 5]
+    # The last STEADY_WINDOW (1 s) of a 3.5 s run: 2.5, 3.0 and 3.5 s.
+    assert STEADY_WINDOW == 1.0
+    assert time[final_window(time)].tolist() == [2.5, 3.0, 3.5]

@@ -77,3 +77,26 @@ def settling_time(time, force, reference, event_time, end_time) -> float | None:
     :func:`settled_from`, counted from the event (None: not settled)."""
     settled = settled_from(time, force, reference, event_time, end_time)
     return None if settled is None else float(settled - event_time)
+
+
+def in_contact(force: np.ndarray, reference) -> np.ndarray:
+    """Samples in contact: a force above CONTACT_FRACTION of Fr (a tip may touch with zero
+    force, which is not yet a contact)."""
+    return force > CONTACT_FRACTION * reference
+
+
+def first_contact_time(time: np.ndarray, contact: np.ndarray) -> float | None:
+    """The time of the first sample in contact (None: never)."""
+    indices = np.nonzero(contact)[0]
+    return float(time[indices[0]]) if indices.size else None
+
+
+def contact_loss_indices(contact: np.ndarray) -> np.ndarray:
+    """The samples after which contact is lost (in contact there, not at the next one)."""
+    return np.nonzero(contact[:-1] & ~contact[1:])[0]
+
+
+def final_window(time: np.ndarray) -> np.ndarray:
+    """The samples of the run's last STEADY_WINDOW, where steady state is measured."""
+    duration = float(time[-1])
+    return window_mask(time, duration - STEADY_WINDOW, duration)

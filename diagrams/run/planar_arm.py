@@ -19,10 +19,13 @@ from admittance.diagrams.loop.safety_layer import (
 )
 from admittance.diagrams.run.engine import RunResult, finish_run, simulate_loop
 from admittance.diagrams.run.metrics import (
-    CONTACT_FRACTION,
     SETTLE_AVERAGE_SAMPLES,
     SETTLE_BAND,
     STEADY_WINDOW,
+    contact_loss_indices,
+    final_window,
+    first_contact_time,
+    in_contact,
     settling_time,
     time_mean,
     trailing_average,
@@ -99,11 +102,10 @@ def compute_metrics(result: SimulationResult) -> dict:
     scenario = result.scenario
     duration = float(time[-1])
     error = np.abs(force - reference)
-    in_contact = force > CONTACT_FRACTION * reference
-    contact_indices = np.nonzero(in_contact)[0]
-    first_contact = float(time[contact_indices[0]]) if contact_indices.size else None
+    contact = in_contact(force, reference)
+    first_contact = first_contact_time(time, contact)
 
-    last = window_mask(time, duration - STEADY_WINDOW, duration)
+    last = final_window(time)
     metrics: dict = {
         "peak_force": float(np.max(force)),
         "steady_state_force_error": time_mean(time[last], error[last]),
@@ -139,7 +141,7 @@ def compute_metrics(result: SimulationResult) -> dict:
     after = time >= first_contact
     metrics["rms_force_error"] = math.sqrt(time_mean(time[after], error[after] ** 2))
     # Contact losses: transitions from contact to no contact after first contact.
-    lost = np.nonzero(in_contact[:-1] & ~in_contact[1:])[0]
+    lost = contact_loss_indices(contact)
     metrics["contact_losses"] = int(lost.size)
     if lost.size:
         metrics["last_contact_loss_time"] = float(time[lost[-1] + 1])
