@@ -71,9 +71,11 @@ def test_scenario_kind_is_checked(tmp_path):
         load_scenario(arm)
 
 
-@pytest.mark.parametrize("command", ["stability", "bench", "compare"])
-def test_arm_only_commands_refuse_a_grasp_in_one_line(command, capsys):
-    assert main([command, "grasp_hold"]) == 2
+@pytest.mark.parametrize("command", ["bench", "compare", "sweep"])
+def test_arm_only_commands_refuse_a_grasp_in_one_line(command, capsys, tmp_path):
+    # (stability analyses a grasp too: tests/test_grasp_stability.py)
+    out = ["--out", str(tmp_path / "sweep")] if command == "sweep" else []
+    assert main([command, "grasp_hold", *out]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "grasp scenario" in err[0], err
 
