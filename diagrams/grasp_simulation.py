@@ -9,9 +9,11 @@ finger's force exceeds CRUSH_FACTOR Fr, and otherwise LOSES it: a finger is off 
 The grasp SETTLES when every finger's true normal force is within SETTLE_BAND of its Fr
 from then to the end of the run (or, with a disturbance, to its start); the brick's drop
 and each finger's slip are measured from that moment (from the end of the ramp if it never
-settles). A disturbance is reported on its own: the peak forces after it, whether every
-finger kept contact, and its RECOVERY TIME, from its start until every force is back
-within SETTLE_BAND of Fr to the end of the run.
+settles), and so are the brick's displacement in each direction (y, z both ways, theta)
+and each finger's slip rate (a least-squares slope over the hold). A disturbance is
+reported on its own: the peak forces after it, whether every finger kept contact, and its
+RECOVERY TIME, from its start until every force is back within SETTLE_BAND of Fr to the
+end of the run.
 """
 
 from __future__ import annotations
@@ -118,6 +120,31 @@ def _time_mean(time, values) -> float:
     return float(np.trapezoid(values, time) / (time[-1] - time[0]))
 
 
+def _slope(time, values) -> float:
+    """Least-squares slope of `values` over `time` (0 with fewer than two samples)."""
+    if time.size < 2:
+        return 0.0
+    return float(np.polyfit(time - time[0], values, 1)[0])
+
+
+def _brick_displacement(time, pose, hold_start, holding) -> dict:
+    """The brick's pose from the hold's start, over the hold: each direction, both signs.
+
+    y and z in m, theta in rad; `final` is (y, z, theta) at the hold's last sample.
+    """
+    start = np.array([np.interp(hold_start, time, pose[:, i]) for i in range(3)])
+    moved = pose[holding] - start
+    y, z, theta = moved.T
+    return {
+        "max_rise": max(0.0, float(np.max(z))),
+        "max_drop": max(0.0, float(-np.min(z))),
+        "max_abs_y": float(np.max(np.abs(y))),
+        "max_abs_rotation": float(np.max(np.abs(theta))),
+        "final": moved[-1].tolist(),
+        "rate": [_slope(time[holding], values) for values in (y, z, theta)],
+    }
+
+
 def compute_grasp_metrics(result: GraspResult) -> dict:
     """metrics.json of a grasp: the verdict, the brick, and every finger's forces."""
     scenario = result.scenario
@@ -165,6 +192,8 @@ def compute_grasp_metrics(result: GraspResult) -> dict:
                 "steady_state_force_error": _time_mean(time[last], np.abs(force[last] - reference)),
                 "max_relative_force_error_held": float(np.max(error_held)),
                 "slip": float(np.max(np.abs(result.slip[holding, index]))),
+                # Along its face, m/s: the least-squares slope of the slip over the hold.
+                "slip_rate": _slope(time[holding], result.slip[holding, index]),
             }
         )
     crushed = any(f["peak_force_after_ramp"] > CRUSH_FACTOR * f["force_reference"] for f in fingers)
@@ -188,8 +217,12 @@ def compute_grasp_metrics(result: GraspResult) -> dict:
         "brick_final_displacement": (
             result.brick_pose[-1] - result.brick_pose[holding][0]
         ).tolist(),
+        # From the hold's start: max rise and drop in z, max |y|, max |theta|, the final
+        # (y, z, theta) and the least-squares rate of each over the hold (m, rad, per s).
+        "brick_displacement": _brick_displacement(time, result.brick_pose, hold_start, holding),
         "max_relative_force_error_held": max(f["max_relative_force_error_held"] for f in fingers),
         "max_slip": max(f["slip"] for f in fingers),
+        "max_slip_rate": max(abs(f["slip_rate"]) for f in fingers),
         "peak_force_ratio": max(f["peak_force_after_ramp"] / f["force_reference"] for f in fingers),
         "fingers": fingers,
         "wall_time": result.wall_time,

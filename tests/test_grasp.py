@@ -97,6 +97,7 @@ def test_the_result_folder_has_per_finger_columns_and_metrics(tmp_path, capsys):
     assert {"brick_y", "brick_z", "brick_theta", "brick_drop"} <= set(header)
     metrics = json.loads((out / "metrics.json").read_text())
     assert [f["finger"] for f in metrics["fingers"]] == list(FINGERS)
+    assert all("slip_rate" in f for f in metrics["fingers"]) and "brick_displacement" in metrics
     assert metrics["outcome"] in ("held", "crushed", "lost")
     assert (out / "grasp_forces.png").stat().st_size > 10_000
     assert "held" in capsys.readouterr().out
@@ -129,6 +130,36 @@ def test_replay_draws_the_hand_the_brick_and_the_forces_to_scale(held, tmp_path)
         shaft = tracks[(f"{grasp_replay.FORCE_PATH}/{finger}/shaft", "scale")][frame]["value"][0]
         length = shaft + grasp_replay._HEAD_LENGTH
         assert length == pytest.approx(force * grasp_replay.ARROW_METERS_PER_NEWTON, rel=1e-6)
+
+
+def test_metrics_report_the_brick_in_every_direction_and_each_slip_rate(held):
+    """A brick and tips moved along known lines after the hold's start: the metrics give
+    back each direction's extremes (both signs of z), the final pose and each slope."""
+    import dataclasses
+
+    from admittance.diagrams.grasp_simulation import compute_grasp_metrics
+
+    time = held.time
+    hold = held.metrics["hold_start"]
+    since = np.clip(time - hold, 0.0, None)
+    # y -2 um/s, z up 3 mm then down to 1 mm below the start, theta +1e-4 rad/s.
+    z = np.where(since < 0.5, 6e-3 * since, 3e-3 - 8e-3 * (since - 0.5))
+    pose = np.column_stack([-2e-6 * since, z, 1e-4 * since])
+    slip = np.column_stack([-4e-5 * since, 4e-5 * since, 1e-6 * since])
+    metrics = compute_grasp_metrics(dataclasses.replace(held, brick_pose=pose, slip=slip))
+    moved = metrics["brick_displacement"]
+    last = since[-1]
+    assert moved["max_rise"] == pytest.approx(3e-3, rel=1e-2)
+    assert moved["max_drop"] == pytest.approx(8e-3 * (last - 0.5) - 3e-3, rel=1e-2)
+    assert moved["max_abs_y"] == pytest.approx(2e-6 * last, rel=1e-2)
+    assert moved["max_abs_rotation"] == pytest.approx(1e-4 * last, rel=1e-2)
+    assert moved["final"] == pytest.approx(pose[-1], rel=1e-2)
+    assert moved["rate"][0] == pytest.approx(-2e-6) and moved["rate"][2] == pytest.approx(1e-4)
+    rates = [finger["slip_rate"] for finger in metrics["fingers"]]
+    assert rates == pytest.approx([-4e-5, 4e-5, 1e-6])
+    assert metrics["max_slip_rate"] == pytest.approx(4e-5)
+    # The keys that were there before are kept.
+    assert {"brick_drop", "brick_rise", "brick_final_displacement", "max_slip"} <= set(metrics)
 
 
 def test_position_only_fingers_miss_a_smaller_brick_the_admittance_holds():
