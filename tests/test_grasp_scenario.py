@@ -28,6 +28,7 @@ def test_grasp_keys_by_dotted_override():
             "brick.size_error=-0.002",
             "brick.stiffness_error=10",
             "contact.friction=0.8",
+            "contact.stiction_tolerance=1e-5",
             "controller.kind=pid_only",
             "force_reference=[1.5, 1.5, 0.5]",
         ],
@@ -35,6 +36,9 @@ def test_grasp_keys_by_dotted_override():
     assert scenario.brick.size_error == -0.002
     assert scenario.true_contact_stiffness == pytest.approx(10 * scenario.contact.stiffness)
     assert scenario.contact.friction == 0.8 and scenario.controller.kind == "pid_only"
+    assert scenario.contact.stiction_tolerance == 1e-5
+    # Drake's default unless set.
+    assert load_scenario("grasp_hold").contact.stiction_tolerance == 1e-4
     assert scenario.force_reference == [1.5, 1.5, 0.5]
 
 
@@ -45,6 +49,11 @@ def test_grasp_keys_by_dotted_override():
         ("brick.stiffness_error=0", r"^brick\.stiffness_error: must be in \[0\.01, 100\]"),
         ("contact.friction=0", r"^contact\.friction: must be in \(0, 2\]"),
         ("contact.friction=abc", r"^contact\.friction: expected a number"),
+        (
+            "contact.stiction_tolerance=0",
+            r"^contact\.stiction_tolerance: must be in \[1e-7, 0\.01\] m/s",
+        ),
+        ("contact.stiction_tolerance=0.1", r"^contact\.stiction_tolerance: must be in"),
         ("controller.kind=fixed_reference", r"^controller\.kind: must be one of"),
         ("force_reference=[1, 2]", r"^force_reference: must be 3 values"),
         ("time_step=0.1", r"^time_step: must be 0 \(continuous\) or in \[0\.0001, 0\.005\] s"),

@@ -90,8 +90,15 @@ def _grasp_summary(result: GraspResult) -> str:
         lines.append(
             f"  {finger['finger']}: Fr {finger['force_reference']:g} N, final "
             f"{finger['final_mean_force']:.3g} N, peak after ramp "
-            f"{finger['peak_force_after_ramp']:.3g} N, slip {1e3 * finger['slip']:.3g} mm"
+            f"{finger['peak_force_after_ramp']:.3g} N, slip {1e3 * finger['slip']:.3g} mm "
+            f"({1e6 * finger['slip_rate']:.3g} um/s)"
         )
+    b = m["brick_displacement"]
+    lines.append(
+        f"  brick from the hold's start: rise {1e3 * b['max_rise']:.3g} mm, drop "
+        f"{1e3 * b['max_drop']:.3g} mm, |y| {1e3 * b['max_abs_y']:.3g} mm, |theta| "
+        f"{1e3 * b['max_abs_rotation']:.3g} mrad"
+    )
     if "disturbance" in m:
         d = m["disturbance"]
         recovery = "n/a" if d["recovery_time"] is None else f"{d['recovery_time']:.3g} s"

@@ -195,6 +195,7 @@ def AddHand(builder: DiagramBuilder, scenario: GraspScenario):
         time_step=scenario.time_step,
         contact_model="point",
         discrete_contact_approximation="lagged" if scenario.time_step > 0 else "",
+        stiction_tolerance=scenario.contact.stiction_tolerance,
     )
     plant, scene_graph = AddMultibodyPlant(config, builder)
     plant.set_name("plant")

@@ -100,3 +100,11 @@ def final_window(time: np.ndarray) -> np.ndarray:
     """The samples of the run's last STEADY_WINDOW, where steady state is measured."""
     duration = float(time[-1])
     return window_mask(time, duration - STEADY_WINDOW, duration)
+
+
+def least_squares_slope(time: np.ndarray, values: np.ndarray) -> float:
+    """The least-squares slope of `values` over `time` (a creep or slip rate; 0 with fewer
+    than two samples)."""
+    if time.size < 2:
+        return 0.0
+    return float(np.polyfit(time - time[0], values, 1)[0])

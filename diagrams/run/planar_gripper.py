@@ -9,9 +9,11 @@ finger's force exceeds CRUSH_FACTOR Fr, and otherwise LOSES it: a finger is off 
 The grasp SETTLES when every finger's true normal force is within SETTLE_BAND of its Fr
 from then to the end of the run (or, with a disturbance, to its start); the brick's drop
 and each finger's slip are measured from that moment (from the end of the ramp if it never
-settles). A disturbance is reported on its own: the peak forces after it, whether every
-finger kept contact, and its RECOVERY TIME, from its start until every force is back
-within SETTLE_BAND of Fr to the end of the run.
+settles), and so are the brick's displacement in each direction (y, z both ways, theta)
+and each finger's slip rate (a least-squares slope over the hold). A disturbance is
+reported on its own: the peak forces after it, whether every finger kept contact, and its
+RECOVERY TIME, from its start until every force is back within SETTLE_BAND of Fr to the
+end of the run.
 """
 
 from __future__ import annotations
@@ -35,8 +37,11 @@ from admittance.diagrams.robots.planar_gripper import (
 )
 from admittance.diagrams.run.engine import RunResult, finish_run, simulate_loop
 from admittance.diagrams.run.metrics import (
-    CONTACT_FRACTION,
-    STEADY_WINDOW,
+    contact_loss_indices,
+    final_window,
+    first_contact_time,
+    in_contact,
+    least_squares_slope,
     settled_from,
     time_mean,
 )
@@ -97,6 +102,24 @@ class GraspResult(RunResult):
         return columns
 
 
+def _brick_displacement(time, pose, hold_start, holding) -> dict:
+    """The brick's pose from the hold's start, over the hold: each direction, both signs.
+
+    y and z in m, theta in rad; `final` is (y, z, theta) at the hold's last sample.
+    """
+    start = np.array([np.interp(hold_start, time, pose[:, i]) for i in range(3)])
+    moved = pose[holding] - start
+    y, z, theta = moved.T
+    return {
+        "max_rise": max(0.0, float(np.max(z))),
+        "max_drop": max(0.0, float(-np.min(z))),
+        "max_abs_y": float(np.max(np.abs(y))),
+        "max_abs_rotation": float(np.max(np.abs(theta))),
+        "final": moved[-1].tolist(),
+        "rate": [least_squares_slope(time[holding], values) for values in (y, z, theta)],
+    }
+
+
 def compute_grasp_metrics(result: GraspResult) -> dict:
     """metrics.json of a grasp: the verdict, the brick, and every finger's forces."""
     scenario = result.scenario
@@ -117,21 +140,20 @@ def compute_grasp_metrics(result: GraspResult) -> dict:
     z = result.brick_pose[:, 1]
     z_start = float(np.interp(hold_start, time, z))
     brick_drop = max(0.0, float(np.max(z_start - z[holding])))
-    last = time >= duration - STEADY_WINDOW
+    last = final_window(time)
     fingers = []
     for index, finger in enumerate(FINGERS):
         force = result.force[:, index]
         reference = references[index]
-        in_contact = force > CONTACT_FRACTION * reference
-        contact = np.nonzero(in_contact)[0]
-        contact_after = in_contact[after_ramp]
-        losses = int(np.count_nonzero(contact_after[:-1] & ~contact_after[1:]))
+        contact = in_contact(force, reference)
+        contact_after = contact[after_ramp]
+        losses = int(contact_loss_indices(contact_after).size)
         error_held = np.abs(force[holding] - reference) / reference
         fingers.append(
             {
                 "finger": finger,
                 "force_reference": float(reference),
-                "first_contact_time": float(time[contact[0]]) if contact.size else None,
+                "first_contact_time": first_contact_time(time, contact),
                 "peak_force": float(np.max(force)),
                 "peak_force_after_ramp": float(np.max(force[after_ramp])),
                 "min_force_after_ramp": float(np.min(force[after_ramp])),
@@ -144,6 +166,8 @@ def compute_grasp_metrics(result: GraspResult) -> dict:
                 "steady_state_force_error": time_mean(time[last], np.abs(force[last] - reference)),
                 "max_relative_force_error_held": float(np.max(error_held)),
                 "slip": float(np.max(np.abs(result.slip[holding, index]))),
+                # Along its face, m/s: the least-squares slope of the slip over the hold.
+                "slip_rate": least_squares_slope(time[holding], result.slip[holding, index]),
             }
         )
     crushed = any(f["peak_force_after_ramp"] > CRUSH_FACTOR * f["force_reference"] for f in fingers)
@@ -167,8 +191,12 @@ def compute_grasp_metrics(result: GraspResult) -> dict:
         "brick_final_displacement": (
             result.brick_pose[-1] - result.brick_pose[holding][0]
         ).tolist(),
+        # From the hold's start: max rise and drop in z, max |y|, max |theta|, the final
+        # (y, z, theta) and the least-squares rate of each over the hold (m, rad, per s).
+        "brick_displacement": _brick_displacement(time, result.brick_pose, hold_start, holding),
         "max_relative_force_error_held": max(f["max_relative_force_error_held"] for f in fingers),
         "max_slip": max(f["slip"] for f in fingers),
+        "max_slip_rate": max(abs(f["slip_rate"]) for f in fingers),
         "peak_force_ratio": max(f["peak_force_after_ramp"] / f["force_reference"] for f in fingers),
         "fingers": fingers,
         "wall_time": result.wall_time,
@@ -188,7 +216,7 @@ def compute_grasp_metrics(result: GraspResult) -> dict:
             "peak_force": [float(np.max(result.force[after, i])) for i in range(3)],
             "min_force": [float(np.min(result.force[after, i])) for i in range(3)],
             "contact_kept": bool(
-                np.all(result.force[after] > CONTACT_FRACTION * references[np.newaxis, :])
+                np.all(in_contact(result.force[after], references[np.newaxis, :]))
             ),
             # From the disturbance's start until every force is back within the band.
             "recovery_time": None if None in recovery else max(recovery) - start,

@@ -75,6 +75,11 @@ class GraspContactConfig:
     dissipation: float = 10.0
     # Coulomb friction coefficient between fingertip and brick (static = dynamic).
     friction: float = 0.5
+    # The discrete plant's stiction tolerance v_s, m/s (Drake's default): SAP regularizes
+    # friction, so a tip carrying a tangential load slips at a speed of the order of
+    # v_s f_t / (mu N), or of SAP's own floor where that is larger (docs/grasp.md, "The
+    # creep of a held brick").
+    stiction_tolerance: float = 1.0e-4
 
 
 @dataclass
@@ -210,6 +215,8 @@ GRASP_RANGES: dict[str, Range] = {
     "contact.stiffness": Range("(0, 1e7]", "N/m"),
     "contact.dissipation": Range("[0, 1000]", "s/m"),
     "contact.friction": Range("(0, 2]"),
+    # Drake needs v_s > 0; above 1 cm/s a tip slips visibly under any tangential load.
+    "contact.stiction_tolerance": Range("[1e-7, 0.01]", "m/s"),
     "plan.open_distance": Range("[0, 0.03]", "m"),
     "plan.close_time": Range("(0, 10]", "s"),
     "plan.force_ramp_time": Range("(0, 10]", "s"),
