@@ -146,6 +146,7 @@ def _cmd_simulate(args: argparse.Namespace, progress) -> int:
     check_output_dir(out, overwrite=args.force)
     if args.meshcat_html:
         check_writable(args.meshcat_html, "--meshcat-html")
+        _check_replay_file(args.meshcat_html, args.force)
     try:
         result = run(scenario, progress=progress.simulation(scenario.name, scenario.duration))
     except SimulationDivergedError as diverged:
@@ -160,8 +161,51 @@ def _cmd_simulate(args: argparse.Namespace, progress) -> int:
     print(folder.describe(out))
     if args.meshcat_html:
         progress(f"writing the Meshcat replay {args.meshcat_html}")
-        print(f"wrote {replay(result, args.meshcat_html)} (Meshcat replay)")
+        _write_replay(replay, result, Path(args.meshcat_html), args.force, out)
+        print(f"wrote {args.meshcat_html} (Meshcat replay)")
     return 0
+
+
+# The last line of a Meshcat replay this tool wrote (an HTML comment after the document):
+# the sign that --meshcat-html may replace the file.
+REPLAY_MARK = "<!-- admittance-replay: a Meshcat replay written by admittance simulate -->"
+
+
+def _is_our_replay(path: Path) -> bool:
+    with open(path, "rb") as file:
+        file.seek(max(0, path.stat().st_size - 4096))
+        return REPLAY_MARK.encode() in file.read()
+
+
+def _check_replay_file(path: str | Path, force: bool) -> None:
+    from admittance.diagrams.app.result_folder import check_output_file
+
+    check_output_file(path, "--meshcat-html", _is_our_replay, "a Meshcat replay", force)
+
+
+def _write_replay(replay, result, path: Path, force: bool, out: Path) -> None:
+    """The replay into a hidden sibling of `path`, marked, then moved onto `path` if it may
+    still be replaced (the file may have changed during the run)."""
+    import uuid
+
+    from admittance.diagrams.app.result_folder import OutputExistsError
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temporary = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp.html")
+    try:
+        replay(result, temporary)
+        with open(temporary, "a") as file:
+            file.write(REPLAY_MARK + "\n")
+        try:
+            _check_replay_file(path, force)
+        except OutputExistsError as error:
+            raise OutputExistsError(
+                f"{error} (it changed during the run; the new replay was discarded, the "
+                f"result folder {out}/ was written)"
+            ) from None
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)
 
 
 def _cmd_diagram(args: argparse.Namespace, progress) -> int:
@@ -206,15 +250,37 @@ def _cmd_bench(args: argparse.Namespace, progress) -> int:
             raise ScenarioError(str(error)) from None
     if args.json:
         check_writable(args.json, "--json")
+        _check_bench_file(args.json)
     CheckScenarioStarts(scenario)
     report = run_benchmark(scenario, repeat=args.repeat, progress=progress)
     print(format_benchmark(report, before))
     if args.json:
         path = Path(args.json)
         path.parent.mkdir(parents=True, exist_ok=True)
+        _check_bench_file(path)  # again: it may have changed during the runs
         atomic_write_text(path, json.dumps(report, indent=2) + "\n")
         print(f"wrote {path}")
     return 0
+
+
+def _is_bench_report(path: Path) -> bool:
+    """A JSON file with the keys of a bench report (what `bench --json` writes)."""
+    import json
+
+    try:
+        report = json.loads(path.read_text())
+        report["scenario"]["name"], report["closed_loop"], report["python"]["callbacks"]
+        report["ratio_to_floor"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+    return True
+
+
+def _check_bench_file(path: str | Path) -> None:
+    """bench --json replaces an earlier bench report (no --force needed), nothing else."""
+    from admittance.diagrams.app.result_folder import check_output_file
+
+    check_output_file(path, "--json", _is_bench_report, "a bench report", overwrite=True)
 
 
 def _controller_kinds(text: str | None) -> list[str]:
@@ -586,12 +652,13 @@ def _load_libraries() -> None:
         importlib.import_module("matplotlib.pyplot")
 
 
-def _run(args: argparse.Namespace) -> int:
+def _run(args: argparse.Namespace, argv: list[str]) -> int:
     _load_libraries()
     from admittance.diagrams.app.progress import Progress
     from admittance.diagrams.app.result_folder import (
         OutputExistsError,
         OutputPathError,
+        command_line,
         completed_folders,
     )
     from admittance.diagrams.app.sweep.runner import WorkerDiedError
@@ -599,6 +666,7 @@ def _run(args: argparse.Namespace) -> int:
     from admittance.diagrams.visualization import DiagramPictureError
 
     completed_folders.clear()
+    command_line[:] = ["admittance", *argv]  # recorded in the result folders' markers
     progress = Progress(args.command, quiet=args.quiet or args.quiet_all)
     try:
         return args.handler(args, progress)
@@ -618,7 +686,7 @@ def main(argv: list[str] | None = None) -> int:
     """Runs the command line; returns the exit status (0, 1, 2 or 130)."""
     try:
         args = build_parser().parse_args(argv)
-        return _run(args)
+        return _run(args, sys.argv[1:] if argv is None else list(argv))
     except KeyboardInterrupt:
         return _interrupted()
     except BrokenPipeError:  # the reader went away (e.g. `| head`): not an error of the run
