@@ -22,8 +22,11 @@ NOTE = "the user's own notes\n"
 
 
 def _one_line(capsys, *texts):
-    error = capsys.readouterr().err.strip()
+    """One line on stderr holding `texts`; nothing on stdout (refused before any run)."""
+    captured = capsys.readouterr()
+    error = captured.err.strip()
     assert error.count("\n") == 0 and "Traceback" not in error, error
+    assert captured.out == ""
     for text in texts:
         assert text in error, error
     return error
@@ -52,6 +55,7 @@ def test_force_replaces_an_earlier_result_and_refuses_one_the_user_added_to(tmp_
     assert first["command"] == f"admittance simulate -q --set duration=0.2 --out {out}"
     assert set(first["entries"]) == {p.name for p in out.iterdir()} - {MARKER}
     assert "metrics.json" in first["entries"] and MARKER not in first["entries"]
+    capsys.readouterr()
     # Without --force an earlier result is kept; with it, replaced.
     assert main([*SIMULATE, "--out", str(out)]) == 2
     _one_line(capsys, f"--out {out}: holds an earlier result; pass --force")
@@ -114,6 +118,34 @@ def test_a_folder_that_changes_during_the_run_is_left_as_it_is(tmp_path):
     assert [p.name for p in fresh.iterdir()] == ["notes.txt"]
 
 
+def test_a_file_put_into_the_folder_during_a_run_keeps_both(tmp_path, capsys, monkeypatch):
+    """The command line: the folder, checked before the run, gets the user's file while
+    the simulation runs; the run's result is kept beside it, and the line says where."""
+    import admittance.diagrams.simulation as simulation
+
+    out = tmp_path / "run"
+    assert main([*SIMULATE, "--out", str(out)]) == 0
+    run_scenario = simulation.run_scenario
+
+    def run_while_the_user_writes(scenario, **options):
+        (out / "notes.txt").write_text(NOTE)
+        return run_scenario(scenario, **options)
+
+    monkeypatch.setattr(simulation, "run_scenario", run_while_the_user_writes)
+    capsys.readouterr()
+    assert main([*SIMULATE, "--out", str(out), "--force"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.count("\n") == 0 and "Traceback" not in error
+    (kept,) = [p for p in tmp_path.iterdir() if p.name != "run"]
+    assert error == (
+        f"admittance: error: --out {out}: changed during the run and now holds files this "
+        f"tool did not write (notes.txt); left as it is, the new result is in {kept}/"
+    )
+    assert (out / "notes.txt").read_text() == NOTE and "metrics.json" in marker_entries(out)
+    assert marker_entries(kept) == {p.name for p in kept.iterdir()} - {MARKER}
+    assert json.loads((kept / "metrics.json").read_text())["failed"] is False
+
+
 # A subprocess with the given umask runs the command line.
 _WITH_UMASK = textwrap.dedent(
     """
@@ -149,6 +181,7 @@ def test_sweep_resumes_only_its_own_folder_and_force_replaces_another_result(tmp
     out = tmp_path / "sweep"
     assert main([*SWEEP, "--out", str(out)]) == 0
     assert marker_entries(out) == {p.name for p in out.iterdir()} - {MARKER}
+    capsys.readouterr()
     # The user's file in the sweep's folder: no resume, no start over.
     (out / "notes.txt").write_text(NOTE)
     for force in ([], ["--force"]):
@@ -158,6 +191,7 @@ def test_sweep_resumes_only_its_own_folder_and_force_replaces_another_result(tmp
     # A result folder of `simulate` becomes a sweep's with --force (its files go).
     run = tmp_path / "run"
     assert main([*SIMULATE, "--out", str(run)]) == 0
+    capsys.readouterr()
     assert main([*SWEEP, "--out", str(run)]) == 2
     _one_line(capsys, "not a sweep (no sweep.json); pass --force")
     assert main([*SWEEP, "--out", str(run), "--force"]) == 0

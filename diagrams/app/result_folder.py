@@ -72,6 +72,10 @@ class OutputExistsError(FileExistsError):
     """The result folder exists and overwriting was not asked for."""
 
 
+class ForeignFilesError(OutputExistsError):
+    """The result folder holds something this tool did not write."""
+
+
 class OutputPathError(ValueError):
     """An output path that cannot be written (no such place, no permission, the current
     folder itself)."""
@@ -155,8 +159,8 @@ def named(names: list[str], most: int = 3) -> str:
     return shown + (f" and {len(names) - most} more" if len(names) > most else "")
 
 
-def _not_ours(out_dir: Path, foreign: list[str], flag: str = "--out") -> OutputExistsError:
-    return OutputExistsError(
+def _not_ours(out_dir: Path, foreign: list[str], flag: str = "--out") -> ForeignFilesError:
+    return ForeignFilesError(
         f"{flag} {out_dir}: holds files this tool did not write ({named(foreign)}); "
         "choose another folder"
     )
@@ -308,12 +312,19 @@ def atomic_output_dir(out_dir: str | Path, overwrite: bool = True) -> Iterator[P
 
     On any error (or interruption) the staging folder is removed and `out_dir` is left as
     it was, so a reader never sees a half-written result. With `overwrite` False an existing
-    `out_dir` raises OutputExistsError before anything is written; an `out_dir` holding
-    anything this tool did not write is refused likewise, before and after (see
-    :func:`_move_into_place`). The result carries the marker, listing every file in it.
+    `out_dir` raises OutputExistsError before anything is written. An `out_dir` holding
+    anything this tool did not write is left as it is, and the result kept beside it (see
+    :func:`_move_into_place`): the commands refuse such a folder before their run (with
+    :func:`check_output_dir`), so here it has changed since. The result carries the
+    marker, listing every file in it.
     """
     out_dir = Path(out_dir)
-    check_output_dir(out_dir, overwrite)
+    try:
+        check_output_dir(out_dir, overwrite)
+    except ForeignFilesError:
+        # The command checked before its run: the folder changed since. The result is
+        # written all the same, and kept beside the folder (see _move_into_place).
+        pass
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     _remove_stale_staging(out_dir)
     staging = Path(
