@@ -228,3 +228,15 @@ def test_single_files_replace_only_what_the_tool_wrote(tmp_path, capsys):
         )
     )
     _check_bench_file(report)
+
+
+def test_sweep_checks_its_folder_again_once_locked(tmp_path, capsys, monkeypatch):
+    """The folder gets the user's file between the first check and the lock: refused
+    there, and the lock file the sweep made is taken away again."""
+    import admittance.diagrams.app.sweep.run as sweep_run
+
+    out = _user_folder(tmp_path / "documents")
+    monkeypatch.setattr(sweep_run, "check_folder", lambda out_dir, force: None)
+    assert main([*SWEEP, "--out", str(out), "--force"]) == 2
+    _one_line(capsys, f"--out {out}: holds files this tool did not write (notes.txt)")
+    assert [p.name for p in out.iterdir()] == ["notes.txt"]

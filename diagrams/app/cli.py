@@ -69,9 +69,15 @@ exit status:
   0    done
   1    the run failed (a simulation diverged, a worker process died); one line on stderr
   2    bad input (a scenario key or value, a flag, a file, an --out folder); one line on
-       stderr, nothing written
+       stderr, nothing written (but for a result kept beside an --out folder that got
+       files not the tool's during the run; the line names it)
   130  interrupted (Ctrl-C or SIGTERM); one line on stderr, nothing half-written
 """
+
+
+FORCE_HELP = (
+    "replace an earlier result of this tool in --out; a folder holding other files is refused"
+)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -480,9 +486,17 @@ def build_parser() -> argparse.ArgumentParser:
 
     simulate = _subcommand(commands, "simulate", "run one scenario headless, write results")
     simulate.add_argument("--out", help="output folder (default: results/<scenario name>)")
-    simulate.add_argument("--force", action="store_true", help="replace an existing --out folder")
     simulate.add_argument(
-        "--meshcat-html", metavar="FILE", help="also write a self-contained Meshcat replay"
+        "--force",
+        action="store_true",
+        help="replace an earlier result of this tool in --out (and an earlier "
+        "--meshcat-html replay); a folder holding other files is refused",
+    )
+    simulate.add_argument(
+        "--meshcat-html",
+        metavar="FILE",
+        help="also write a self-contained Meshcat replay (an existing FILE only if it is an "
+        "earlier replay, with --force)",
     )
     simulate.set_defaults(handler=_cmd_simulate)
 
@@ -499,7 +513,7 @@ def build_parser() -> argparse.ArgumentParser:
         "eq. 13, critical Gamma and stability maps",
     )
     stability.add_argument("--out", help="output folder (default: results/<scenario>_stability)")
-    stability.add_argument("--force", action="store_true", help="replace an existing --out folder")
+    stability.add_argument("--force", action="store_true", help=FORCE_HELP)
     stability.add_argument("--quick", action="store_true", help="coarse map grids")
     stability.add_argument(
         "--no-trajectory", action="store_true", help="skip V(t) along a simulated run"
@@ -517,7 +531,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     compare.add_argument("--workers", type=int, help="parallel runs (default: the cores)")
     compare.add_argument("--out", help="output folder (default: results/<scenario>_compare)")
-    compare.add_argument("--force", action="store_true", help="replace an existing --out folder")
+    compare.add_argument("--force", action="store_true", help=FORCE_HELP)
     compare.set_defaults(handler=_cmd_compare)
 
     grasp_compare = _subcommand(
@@ -544,9 +558,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     grasp_compare.add_argument("--workers", type=int, help="parallel runs (default: the cores)")
     grasp_compare.add_argument("--out", help="output folder (default: results/<scenario>_compare)")
-    grasp_compare.add_argument(
-        "--force", action="store_true", help="replace an existing --out folder"
-    )
+    grasp_compare.add_argument("--force", action="store_true", help=FORCE_HELP)
     grasp_compare.set_defaults(handler=_cmd_grasp_compare)
 
     bench = _subcommand(
@@ -558,7 +570,11 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument(
         "--repeat", type=int, default=3, help=f"timed runs, 1 to {MAX_REPEAT} (default 3)"
     )
-    bench.add_argument("--json", metavar="FILE", help="also write the report as JSON")
+    bench.add_argument(
+        "--json",
+        metavar="FILE",
+        help="also write the report as JSON (an existing FILE only if it is a bench report)",
+    )
     bench.add_argument(
         "--before",
         metavar="FILE",
@@ -619,7 +635,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="sweep folder: points.jsonl (the resumable record), table.csv, summary.txt, PNG",
     )
     sweep.add_argument(
-        "--force", action="store_true", help="start over in a folder that holds another sweep"
+        "--force",
+        action="store_true",
+        help="start over in a folder that holds another sweep (or another result of this "
+        "tool); a folder holding other files is refused",
     )
     sweep.set_defaults(handler=_cmd_sweep)
     return parser
