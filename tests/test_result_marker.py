@@ -240,3 +240,16 @@ def test_sweep_checks_its_folder_again_once_locked(tmp_path, capsys, monkeypatch
     assert main([*SWEEP, "--out", str(out), "--force"]) == 2
     _one_line(capsys, f"--out {out}: holds files this tool did not write (notes.txt)")
     assert [p.name for p in out.iterdir()] == ["notes.txt"]
+
+
+def test_the_replay_is_marked_and_replaced_only_with_force(tmp_path, capsys):
+    replay = tmp_path / "replay.html"
+    arguments = [*SIMULATE, "--meshcat-html", str(replay)]
+    assert main([*arguments, "--out", str(tmp_path / "one")]) == 0
+    assert replay.read_text().rstrip().endswith(REPLAY_MARK)
+    capsys.readouterr()
+    assert main([*arguments, "--out", str(tmp_path / "two")]) == 2
+    _one_line(capsys, f"--meshcat-html {replay}: exists (a Meshcat replay this tool wrote); pass")
+    assert main([*arguments, "--out", str(tmp_path / "two"), "--force"]) == 0
+    assert replay.read_text().count(REPLAY_MARK) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["one", "replay.html", "two"]
