@@ -8,11 +8,14 @@ import textwrap
 
 import pytest
 
-from admittance.diagrams.app.cli import REPLAY_MARK, _check_bench_file, _check_replay_file, main
+from admittance.diagrams.app.bench_report import check_bench_file
+from admittance.diagrams.app.cli import main
 from admittance.diagrams.app.result_folder import (
     MARKER,
+    REPLAY_MARK,
     OutputExistsError,
     atomic_output_dir,
+    check_replay_file,
     marker_entries,
 )
 
@@ -78,6 +81,9 @@ def test_a_marker_that_is_not_the_tools_does_not_make_a_folder_replaceable(tmp_p
     (out / MARKER).write_text('{"tool": "other", "entries": ["notes.txt"]}')
     assert main([*SIMULATE, "--out", str(out), "--force"]) == 2
     _one_line(capsys, f"did not write ({MARKER}, notes.txt)")
+    (out / MARKER).write_text('{"tool": "admittance", "entries": ["../notes.txt", "."]}')
+    assert main([*SWEEP, "--out", str(out), "--force"]) == 2
+    _one_line(capsys, "did not write (notes.txt)")
     (out / MARKER).write_text("not json")
     assert main([*SIMULATE, "--out", str(out), "--force"]) == 2
     _one_line(capsys, "did not write")
@@ -213,9 +219,9 @@ def test_single_files_replace_only_what_the_tool_wrote(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["mine.html"]
     replay = tmp_path / "replay.html"
     replay.write_text(f"<html></html>\n{REPLAY_MARK}\n")
-    _check_replay_file(replay, force=True)
+    check_replay_file(replay, force=True)
     with pytest.raises(OutputExistsError, match="this tool wrote\\); pass --force"):
-        _check_replay_file(replay, force=False)
+        check_replay_file(replay, force=False)
     report = tmp_path / "bench.json"
     report.write_text(
         json.dumps(
@@ -227,7 +233,7 @@ def test_single_files_replace_only_what_the_tool_wrote(tmp_path, capsys):
             }
         )
     )
-    _check_bench_file(report)
+    check_bench_file(report)
 
 
 def test_sweep_checks_its_folder_again_once_locked(tmp_path, capsys, monkeypatch):

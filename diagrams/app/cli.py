@@ -69,15 +69,13 @@ exit status:
   0    done
   1    the run failed (a simulation diverged, a worker process died); one line on stderr
   2    bad input (a scenario key or value, a flag, a file, an --out folder); one line on
-       stderr, nothing written (but for a result kept beside an --out folder that got
-       files not the tool's during the run; the line names it)
+       stderr, nothing written (but a result kept beside an --out folder that changed, named)
   130  interrupted (Ctrl-C or SIGTERM); one line on stderr, nothing half-written
 """
 
 
-FORCE_HELP = (
-    "replace an earlier result of this tool in --out; a folder holding other files is refused"
-)
+FORCE_HELP = "replace an earlier result of this tool in --out, never a folder with other files"
+SIMULATE_FORCE_HELP = FORCE_HELP + " (and an earlier --meshcat-html replay)"
 
 
 class _Parser(argparse.ArgumentParser):
@@ -132,7 +130,12 @@ def _arm_scenario(args: argparse.Namespace):
 
 
 def _cmd_simulate(args: argparse.Namespace, progress) -> int:
-    from admittance.diagrams.app.result_folder import check_output_dir, check_writable
+    from admittance.diagrams.app.result_folder import (
+        check_output_dir,
+        check_replay_file,
+        check_writable,
+        write_marked_replay,
+    )
     from admittance.diagrams.grasp_scenario import GraspScenario
     from admittance.diagrams.scenario import load_scenario
     from admittance.diagrams.simulation import SimulationDivergedError
@@ -152,7 +155,7 @@ def _cmd_simulate(args: argparse.Namespace, progress) -> int:
     check_output_dir(out, overwrite=args.force)
     if args.meshcat_html:
         check_writable(args.meshcat_html, "--meshcat-html")
-        _check_replay_file(args.meshcat_html, args.force)
+        check_replay_file(args.meshcat_html, args.force)
     try:
         result = run(scenario, progress=progress.simulation(scenario.name, scenario.duration))
     except SimulationDivergedError as diverged:
@@ -167,51 +170,9 @@ def _cmd_simulate(args: argparse.Namespace, progress) -> int:
     print(folder.describe(out))
     if args.meshcat_html:
         progress(f"writing the Meshcat replay {args.meshcat_html}")
-        _write_replay(replay, result, Path(args.meshcat_html), args.force, out)
+        write_marked_replay(replay, result, Path(args.meshcat_html), args.force, out)
         print(f"wrote {args.meshcat_html} (Meshcat replay)")
     return 0
-
-
-# The last line of a Meshcat replay this tool wrote (an HTML comment after the document):
-# the sign that --meshcat-html may replace the file.
-REPLAY_MARK = "<!-- admittance-replay: a Meshcat replay written by admittance simulate -->"
-
-
-def _is_our_replay(path: Path) -> bool:
-    with open(path, "rb") as file:
-        file.seek(max(0, path.stat().st_size - 4096))
-        return REPLAY_MARK.encode() in file.read()
-
-
-def _check_replay_file(path: str | Path, force: bool) -> None:
-    from admittance.diagrams.app.result_folder import check_output_file
-
-    check_output_file(path, "--meshcat-html", _is_our_replay, "a Meshcat replay", force)
-
-
-def _write_replay(replay, result, path: Path, force: bool, out: Path) -> None:
-    """The replay into a hidden sibling of `path`, marked, then moved onto `path` if it may
-    still be replaced (the file may have changed during the run)."""
-    import uuid
-
-    from admittance.diagrams.app.result_folder import OutputExistsError
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp.html")
-    try:
-        replay(result, temporary)
-        with open(temporary, "a") as file:
-            file.write(REPLAY_MARK + "\n")
-        try:
-            _check_replay_file(path, force)
-        except OutputExistsError as error:
-            raise OutputExistsError(
-                f"{error} (it changed during the run; the new replay was discarded, the "
-                f"result folder {out}/ was written)"
-            ) from None
-        os.replace(temporary, path)
-    finally:
-        temporary.unlink(missing_ok=True)
 
 
 def _cmd_diagram(args: argparse.Namespace, progress) -> int:
@@ -237,7 +198,11 @@ def _cmd_bench(args: argparse.Namespace, progress) -> int:
     import json
 
     from admittance.diagrams.app.bench import run_benchmark
-    from admittance.diagrams.app.bench_report import format_benchmark, load_benchmark_report
+    from admittance.diagrams.app.bench_report import (
+        check_bench_file,
+        format_benchmark,
+        load_benchmark_report,
+    )
     from admittance.diagrams.app.result_folder import atomic_write_text, check_writable
     from admittance.diagrams.closed_loop import CheckScenarioStarts
     from admittance.diagrams.scenario import ScenarioError
@@ -256,37 +221,17 @@ def _cmd_bench(args: argparse.Namespace, progress) -> int:
             raise ScenarioError(str(error)) from None
     if args.json:
         check_writable(args.json, "--json")
-        _check_bench_file(args.json)
+        check_bench_file(args.json)
     CheckScenarioStarts(scenario)
     report = run_benchmark(scenario, repeat=args.repeat, progress=progress)
     print(format_benchmark(report, before))
     if args.json:
         path = Path(args.json)
         path.parent.mkdir(parents=True, exist_ok=True)
-        _check_bench_file(path)  # again: it may have changed during the runs
+        check_bench_file(path)  # again: it may have changed during the runs
         atomic_write_text(path, json.dumps(report, indent=2) + "\n")
         print(f"wrote {path}")
     return 0
-
-
-def _is_bench_report(path: Path) -> bool:
-    """A JSON file with the keys of a bench report (what `bench --json` writes)."""
-    import json
-
-    try:
-        report = json.loads(path.read_text())
-        report["scenario"]["name"], report["closed_loop"], report["python"]["callbacks"]
-        report["ratio_to_floor"]
-    except (OSError, ValueError, KeyError, TypeError):
-        return False
-    return True
-
-
-def _check_bench_file(path: str | Path) -> None:
-    """bench --json replaces an earlier bench report (no --force needed), nothing else."""
-    from admittance.diagrams.app.result_folder import check_output_file
-
-    check_output_file(path, "--json", _is_bench_report, "a bench report", overwrite=True)
 
 
 def _controller_kinds(text: str | None) -> list[str]:
@@ -486,17 +431,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     simulate = _subcommand(commands, "simulate", "run one scenario headless, write results")
     simulate.add_argument("--out", help="output folder (default: results/<scenario name>)")
-    simulate.add_argument(
-        "--force",
-        action="store_true",
-        help="replace an earlier result of this tool in --out (and an earlier "
-        "--meshcat-html replay); a folder holding other files is refused",
-    )
+    simulate.add_argument("--force", action="store_true", help=SIMULATE_FORCE_HELP)
     simulate.add_argument(
         "--meshcat-html",
         metavar="FILE",
-        help="also write a self-contained Meshcat replay (an existing FILE only if it is an "
-        "earlier replay, with --force)",
+        help="also write a self-contained Meshcat replay (see --force)",
     )
     simulate.set_defaults(handler=_cmd_simulate)
 
@@ -570,11 +509,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument(
         "--repeat", type=int, default=3, help=f"timed runs, 1 to {MAX_REPEAT} (default 3)"
     )
-    bench.add_argument(
-        "--json",
-        metavar="FILE",
-        help="also write the report as JSON (an existing FILE only if it is a bench report)",
-    )
+    bench.add_argument("--json", metavar="FILE", help="also write the report as JSON")
     bench.add_argument(
         "--before",
         metavar="FILE",
@@ -635,10 +570,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="sweep folder: points.jsonl (the resumable record), table.csv, summary.txt, PNG",
     )
     sweep.add_argument(
-        "--force",
-        action="store_true",
-        help="start over in a folder that holds another sweep (or another result of this "
-        "tool); a folder holding other files is refused",
+        "--force", action="store_true", help="start over in a folder of another sweep (or result)"
     )
     sweep.set_defaults(handler=_cmd_sweep)
     return parser

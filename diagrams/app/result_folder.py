@@ -48,11 +48,13 @@ __all__ = [
     "atomic_write_text",
     "check_output_dir",
     "check_output_file",
+    "check_replay_file",
     "check_writable",
     "foreign_entries",
     "json_safe",
     "marker_entries",
     "result_folder",
+    "write_marked_replay",
     "write_marker",
 ]
 
@@ -133,7 +135,8 @@ def marker_entries(folder: Path) -> set[str] | None:
     entries = record.get("entries")
     if not isinstance(entries, list):
         return None
-    return {entry for entry in entries if isinstance(entry, str)}
+    # Plain names only: a marker is never a way to name something outside its folder.
+    return {e for e in entries if isinstance(e, str) and "/" not in e and e not in ("", ".", "..")}
 
 
 def foreign_entries(folder: Path, own: Callable[[str], bool] = lambda name: False) -> list[str]:
@@ -423,3 +426,40 @@ def atomic_write(path: Path, write: Callable[[Path], None]) -> None:
 def atomic_write_text(path: Path, text: str) -> None:
     """`path` holds `text` afterwards, or is left as it was."""
     atomic_write(path, lambda temporary: temporary.write_text(text))
+
+
+# The last line of a Meshcat replay this tool wrote (an HTML comment after the document):
+# the sign that --meshcat-html may replace the file.
+REPLAY_MARK = "<!-- admittance-replay: a Meshcat replay written by admittance simulate -->"
+
+
+def _is_marked_replay(path: Path) -> bool:
+    with open(path, "rb") as file:
+        file.seek(max(0, path.stat().st_size - 4096))
+        return REPLAY_MARK.encode() in file.read()
+
+
+def check_replay_file(path: str | Path, force: bool) -> None:
+    """--meshcat-html FILE replaces only a replay this tool wrote, and only with --force."""
+    check_output_file(path, "--meshcat-html", _is_marked_replay, "a Meshcat replay", force)
+
+
+def write_marked_replay(replay, result, path: Path, force: bool, out: Path) -> None:
+    """`replay(result, file)` into a hidden sibling of `path`, marked, then moved onto
+    `path` if it may still be replaced (the file may have changed during the run)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temporary = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp.html")
+    try:
+        replay(result, temporary)
+        with open(temporary, "a") as file:
+            file.write(REPLAY_MARK + "\n")
+        try:
+            check_replay_file(path, force)
+        except OutputExistsError as error:
+            raise OutputExistsError(
+                f"{error} (it changed during the run; the new replay was discarded, the "
+                f"result folder {out}/ was written)"
+            ) from None
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)

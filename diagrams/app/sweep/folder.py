@@ -148,7 +148,7 @@ def prepare_folder(definition: SweepDefinition, out_dir: Path, force: bool) -> N
                 f"{', '.join(differ)}); pass --force to start over, or choose another folder"
             )
     if force:  # start over: what this tool wrote here goes
-        for name in sorted(listed - {LOCK_FILE, MARKER}):
+        for name in sorted(listed.intersection(os.listdir(out_dir)) - {LOCK_FILE, MARKER}):
             (out_dir / name).unlink(missing_ok=True)
         listed = set()
     # Listed before they are written: a run killed at any moment leaves only listed files.
