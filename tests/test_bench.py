@@ -215,3 +215,16 @@ def test_an_earlier_report_of_another_scenario_is_refused(report, tmp_path):
         load_benchmark_report(path, other)
     with pytest.raises(ValueError, match="--before .*missing.json"):
         load_benchmark_report(tmp_path / "missing.json", other)
+
+
+def test_bench_json_may_replace_a_real_report_and_nothing_else(report, tmp_path):
+    """`bench --json FILE` recognises its own report (so it replaces it), not other JSON."""
+    from admittance.diagrams.app.bench_report import check_bench_file
+    from admittance.diagrams.app.result_folder import OutputExistsError
+
+    path = tmp_path / "bench.json"
+    path.write_text(json.dumps(report))
+    check_bench_file(path)
+    path.write_text(json.dumps({"scenario": report["scenario"]}))
+    with pytest.raises(OutputExistsError, match="not a bench report this tool wrote"):
+        check_bench_file(path)

@@ -10,6 +10,7 @@ import sys
 import pytest
 
 from admittance.diagrams.app.cli import main
+from admittance.diagrams.app.result_folder import MARKER, marker_entries
 
 REQUIRED_COLUMNS = ["time", "x", "y", "theta", "xr", "force", "force_measured", "force_reference"]
 REQUIRED_METRICS = [
@@ -29,6 +30,7 @@ def test_simulate_writes_timeseries_metrics_and_figures(tmp_path, capsys):
     names = {p.name for p in out.iterdir()}
     assert {"timeseries.csv", "metrics.json", "scenario.yaml"} <= names
     assert {"fig5_errors.png", "fig6_reference.png", "fig7_force.png"} <= names
+    assert marker_entries(out) == names - {MARKER}  # the result marker lists every file
     with open(out / "timeseries.csv") as file:
         rows = list(csv.DictReader(file))
     assert set(REQUIRED_COLUMNS) <= set(rows[0])

@@ -8,6 +8,7 @@ import csv
 import pytest
 
 from admittance.diagrams.app.cli import main
+from admittance.diagrams.app.result_folder import MARKER, marker_entries
 
 
 def _table(path):
@@ -50,6 +51,7 @@ def test_compare_tables_every_controller(tmp_path, capsys, scenario, overrides, 
         assert table[kind]["verdict"] != "tracks Fr"
     assert (out / "force.png").stat().st_size > 10_000
     assert (out / "table.txt").read_text().count("\n") >= 6
+    assert marker_entries(out) == {p.name for p in out.iterdir()} - {MARKER}
 
 
 def test_compare_rejects_an_unknown_controller(tmp_path, capsys):

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from admittance.diagrams.app.cli import main
+from admittance.diagrams.app.result_folder import marker_entries
 from admittance.diagrams.loop.planar_gripper import BuildGrasp, SetGraspInitialConditions
 from admittance.diagrams.robots.planar_gripper import BRICK_JOINTS
 from admittance.diagrams.run.planar_gripper import CRUSH_FACTOR, DROP_LIMIT, run_grasp
@@ -316,6 +317,7 @@ def test_grasp_compare_runs_its_points_on_the_application_runner(tmp_path, capsy
     assert admittance["max_relative_force_error_held"] <= 0.10
     assert position_only["max_relative_force_error_held"] > 0.5
     assert (out / "table.md").read_text() in captured.out
+    assert marker_entries(out) == {"table.md", "rows.json"}  # the result marker
     assert "[2/2]" in captured.err
 
 

@@ -357,9 +357,12 @@ def test_a_continuous_or_position_only_grasp_is_refused_in_one_line():
 @pytest.mark.slow
 def test_the_stability_command_on_a_grasp(tmp_path, capsys):
     from admittance.diagrams.app.cli import main
+    from admittance.diagrams.app.result_folder import MARKER, marker_entries
 
     out = tmp_path / "grasp_hold_stability"
     assert main(["stability", "grasp_hold", "--out", str(out), "--quick"]) == 0
     printed = capsys.readouterr().out
     assert "--quick: a grasp has no stability maps" in printed
-    assert {p.name for p in out.iterdir()} == {"report.json", "report.txt", "eigenvalues.png"}
+    written = {"report.json", "report.txt", "eigenvalues.png"}
+    assert {p.name for p in out.iterdir()} == written | {MARKER}
+    assert set(marker_entries(out)) == written

@@ -15,12 +15,15 @@ from admittance.diagrams.app.result_folder import (
     INCOMPLETE_MARK,
     OutputExistsError,
     atomic_output_dir,
+    write_marker,
 )
 
 
 def _previous_result(folder):
+    """An earlier result of the tool: its file and the marker that lists it."""
     folder.mkdir()
     (folder / "metrics.json").write_text('{"previous": true}\n')
+    write_marker(folder, ["metrics.json"])
 
 
 def test_existing_result_is_not_overwritten_without_force(tmp_path, capsys):

@@ -30,6 +30,7 @@ from admittance.diagrams.analysis.stability import (
     with_values,
 )
 from admittance.diagrams.app.cli import main
+from admittance.diagrams.app.result_folder import MARKER, marker_entries
 from admittance.diagrams.run.planar_arm import run_scenario
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.systems.optimal_admittance import OptimalAdmittance
@@ -194,7 +195,9 @@ def test_stability_command_writes_the_report(tmp_path, capsys):
     captured = capsys.readouterr()
     written = captured.out.strip().splitlines()[-1]
     assert written.startswith(f"wrote {out}/: ")
-    assert sorted(written.split(": ", 1)[1].split(", ")) == sorted(p.name for p in out.iterdir())
+    names = sorted(p.name for p in out.iterdir() if p.name != MARKER)
+    assert sorted(written.split(": ", 1)[1].split(", ")) == names
+    assert sorted(marker_entries(out)) == names  # the result marker lists every file
     assert "lyapunov_along_trajectory.png" not in written
     # A progress line per stage on stderr, the four maps among them.
     assert captured.err.count("admittance stability: stability map ") == 4

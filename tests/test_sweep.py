@@ -17,6 +17,7 @@ import time
 import pytest
 
 from admittance.diagrams.app.cli import main
+from admittance.diagrams.app.result_folder import MARKER, marker_entries
 from admittance.diagrams.app.sweep import (
     GRID_FORMS,
     RANDOM_FORMS,
@@ -315,6 +316,7 @@ def test_grid_sweep_writes_the_table_points_and_plots(tmp_path, capsys):
     plot = out / "summary_wall.stiffness.png"
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert not [n for n in names if n.endswith(".tmp")]
+    assert marker_entries(out) == names - {MARKER}  # the result marker lists every file
     assert (out / "summary.txt").read_text() in printed
     assert len(_lines(out)) == 4
     rows = _table(out)
@@ -376,7 +378,7 @@ def test_another_sweep_in_the_same_folder_needs_force(tmp_path, capsys):
     stranger.mkdir()
     (stranger / "metrics.json").write_text("{}")
     assert main(["sweep", *SHORT, "--grid", "wall.stiffness=2e4", "--out", str(stranger)]) == 2
-    assert "not a sweep folder" in capsys.readouterr().err
+    assert "holds files this tool did not write (metrics.json)" in capsys.readouterr().err
     assert sorted(p.name for p in stranger.iterdir()) == ["metrics.json"]
 
 

@@ -13,9 +13,10 @@ import os
 from pathlib import Path
 
 from admittance.diagrams.app.formatting import number, seconds
+from admittance.diagrams.app.result_folder import check_output_file
 from admittance.diagrams.scenario.planar_arm import Scenario
 
-__all__ = ["format_benchmark", "load_benchmark_report"]
+__all__ = ["check_bench_file", "format_benchmark", "load_benchmark_report"]
 
 # --- the table --------------------------------------------------------------------------
 
@@ -47,6 +48,22 @@ def load_benchmark_report(path: str | os.PathLike, scenario: Scenario) -> dict:
             f"{wanted['sensor']})"
         )
     return report
+
+
+def _is_bench_report(path: Path) -> bool:
+    """A JSON file with the keys of a bench report (what `bench --json` writes)."""
+    try:
+        report = json.loads(path.read_text())
+        report["scenario"]["name"], report["closed_loop"], report["python"]["callbacks"]
+        report["ratio_to_floor"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+    return True
+
+
+def check_bench_file(path: str | os.PathLike) -> None:
+    """bench --json replaces an earlier bench report (no --force needed), nothing else."""
+    check_output_file(path, "--json", _is_bench_report, "a bench report", overwrite=True)
 
 
 def _format_before(report: dict, before: dict) -> list[str]:

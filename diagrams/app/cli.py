@@ -86,10 +86,15 @@ def _arm_scenario(args: argparse.Namespace):
 
 
 def _cmd_simulate(args: argparse.Namespace, progress) -> int:
-    from admittance.diagrams.app.result_folder import check_output_dir, check_writable
+    from admittance.diagrams.app.result_folder import (
+        check_output_dir,
+        check_replay_file,
+        check_writable,
+        write_marked_replay,
+    )
     from admittance.diagrams.app.simulate import summary, write_results
     from admittance.diagrams.run.engine import SimulationDivergedError
-    from admittance.diagrams.run.simulate import simulate
+    from admittance.diagrams.run.simulation import simulate
     from admittance.diagrams.scenario.files import load_scenario
     from admittance.diagrams.views.figures import write_replay
 
@@ -98,6 +103,7 @@ def _cmd_simulate(args: argparse.Namespace, progress) -> int:
     check_output_dir(out, overwrite=args.force)
     if args.meshcat_html:
         check_writable(args.meshcat_html, "--meshcat-html")
+        check_replay_file(args.meshcat_html, args.force)
     try:
         result = simulate(scenario, progress=progress.simulation(scenario.name, scenario.duration))
     except SimulationDivergedError as diverged:
@@ -112,7 +118,8 @@ def _cmd_simulate(args: argparse.Namespace, progress) -> int:
     print(folder.describe(out))
     if args.meshcat_html:
         progress(f"writing the Meshcat replay {args.meshcat_html}")
-        print(f"wrote {write_replay(result, args.meshcat_html)} (Meshcat replay)")
+        write_marked_replay(write_replay, result, Path(args.meshcat_html), args.force, out)
+        print(f"wrote {args.meshcat_html} (Meshcat replay)")
     return 0
 
 
@@ -136,7 +143,11 @@ def _cmd_bench(args: argparse.Namespace, progress) -> int:
     import json
 
     from admittance.diagrams.app.bench import run_benchmark
-    from admittance.diagrams.app.bench_report import format_benchmark, load_benchmark_report
+    from admittance.diagrams.app.bench_report import (
+        check_bench_file,
+        format_benchmark,
+        load_benchmark_report,
+    )
     from admittance.diagrams.app.result_folder import atomic_write_text, check_writable
     from admittance.diagrams.loop.planar_arm import CheckScenarioStarts
     from admittance.diagrams.scenario.schema import ScenarioError
@@ -155,12 +166,14 @@ def _cmd_bench(args: argparse.Namespace, progress) -> int:
             raise ScenarioError(str(error)) from None
     if args.json:
         check_writable(args.json, "--json")
+        check_bench_file(args.json)
     CheckScenarioStarts(scenario)
     report = run_benchmark(scenario, repeat=args.repeat, progress=progress)
     print(format_benchmark(report, before))
     if args.json:
         path = Path(args.json)
         path.parent.mkdir(parents=True, exist_ok=True)
+        check_bench_file(path)  # again: it may have changed during the runs
         atomic_write_text(path, json.dumps(report, indent=2) + "\n")
         print(f"wrote {path}")
     return 0
@@ -369,12 +382,13 @@ def _load_libraries() -> None:
         importlib.import_module("matplotlib.pyplot")
 
 
-def _run(args: argparse.Namespace) -> int:
+def _run(args: argparse.Namespace, argv: list[str]) -> int:
     _load_libraries()
     from admittance.diagrams.app.progress import Progress
     from admittance.diagrams.app.result_folder import (
         OutputExistsError,
         OutputPathError,
+        command_line,
         completed_folders,
     )
     from admittance.diagrams.app.sweep.runner import WorkerDiedError
@@ -382,6 +396,7 @@ def _run(args: argparse.Namespace) -> int:
     from admittance.diagrams.views.picture import DiagramPictureError
 
     completed_folders.clear()
+    command_line[:] = ["admittance", *argv]  # recorded in the result folders' markers
     progress = Progress(args.command, quiet=args.quiet or args.quiet_all)
     try:
         return args.handler(args, progress)
@@ -401,7 +416,7 @@ def main(argv: list[str] | None = None) -> int:
     """Runs the command line; returns the exit status (0, 1, 2 or 130)."""
     try:
         args = build_parser(HANDLERS).parse_args(argv)
-        return _run(args)
+        return _run(args, sys.argv[1:] if argv is None else list(argv))
     except KeyboardInterrupt:
         return _interrupted()
     except BrokenPipeError:  # the reader went away (e.g. `| head`): not an error of the run

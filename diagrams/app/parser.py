@@ -34,9 +34,13 @@ exit status:
   0    done
   1    the run failed (a simulation diverged, a worker process died); one line on stderr
   2    bad input (a scenario key or value, a flag, a file, an --out folder); one line on
-       stderr, nothing written
+       stderr, nothing written (but a result kept beside an --out folder that changed, named)
   130  interrupted (Ctrl-C or SIGTERM); one line on stderr, nothing half-written
 """
+
+
+FORCE_HELP = "replace an earlier result of this tool in --out, never a folder with other files"
+SIMULATE_FORCE_HELP = FORCE_HELP + " (and an earlier --meshcat-html replay)"
 
 
 class _Parser(argparse.ArgumentParser):
@@ -108,9 +112,11 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
 
     simulate = _subcommand(commands, "simulate", "run one scenario headless, write results")
     simulate.add_argument("--out", help="output folder (default: results/<scenario name>)")
-    simulate.add_argument("--force", action="store_true", help="replace an existing --out folder")
+    simulate.add_argument("--force", action="store_true", help=SIMULATE_FORCE_HELP)
     simulate.add_argument(
-        "--meshcat-html", metavar="FILE", help="also write a self-contained Meshcat replay"
+        "--meshcat-html",
+        metavar="FILE",
+        help="also write a self-contained Meshcat replay (see --force)",
     )
     simulate.set_defaults(handler=handlers["simulate"])
 
@@ -127,7 +133,7 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
         "eq. 13, critical Gamma and stability maps",
     )
     stability.add_argument("--out", help="output folder (default: results/<scenario>_stability)")
-    stability.add_argument("--force", action="store_true", help="replace an existing --out folder")
+    stability.add_argument("--force", action="store_true", help=FORCE_HELP)
     stability.add_argument("--quick", action="store_true", help="coarse map grids")
     stability.add_argument(
         "--no-trajectory", action="store_true", help="skip V(t) along a simulated run"
@@ -145,7 +151,7 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     )
     compare.add_argument("--workers", type=int, help="parallel runs (default: the cores)")
     compare.add_argument("--out", help="output folder (default: results/<scenario>_compare)")
-    compare.add_argument("--force", action="store_true", help="replace an existing --out folder")
+    compare.add_argument("--force", action="store_true", help=FORCE_HELP)
     compare.set_defaults(handler=handlers["compare"])
 
     grasp_compare = _subcommand(
@@ -172,9 +178,7 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     )
     grasp_compare.add_argument("--workers", type=int, help="parallel runs (default: the cores)")
     grasp_compare.add_argument("--out", help="output folder (default: results/<scenario>_compare)")
-    grasp_compare.add_argument(
-        "--force", action="store_true", help="replace an existing --out folder"
-    )
+    grasp_compare.add_argument("--force", action="store_true", help=FORCE_HELP)
     grasp_compare.set_defaults(handler=handlers["grasp-compare"])
 
     bench = _subcommand(
@@ -247,7 +251,7 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
         help="sweep folder: points.jsonl (the resumable record), table.csv, summary.txt, PNG",
     )
     sweep.add_argument(
-        "--force", action="store_true", help="start over in a folder that holds another sweep"
+        "--force", action="store_true", help="start over in a folder of another sweep (or result)"
     )
     sweep.set_defaults(handler=handlers["sweep"])
     return parser

@@ -1,4 +1,10 @@
-"""The sweep's folder: its definition (sweep.json), its file names, and one sweep at a time."""
+"""The sweep's folder: its definition (sweep.json), its file names, and one sweep at a time.
+
+A sweep writes into its folder as it goes, so the folder carries the result marker
+(``.admittance-result``, see app/result_folder.py) from the start, listing every file the
+sweep writes there. A sweep resumes, or with --force starts over in, only a folder that
+holds nothing else: an empty one, or one whose marker lists everything in it.
+"""
 
 from __future__ import annotations
 
@@ -6,12 +12,18 @@ import contextlib
 import fcntl
 import json
 import os
+import re
 from pathlib import Path
 
 from admittance.diagrams.app.result_folder import (
+    MARKER,
     OutputPathError,
     atomic_write_text,
     check_writable,
+    foreign_entries,
+    marker_entries,
+    named,
+    write_marker,
 )
 from admittance.diagrams.app.sweep.definition import SweepDefinition
 from admittance.diagrams.app.sweep.specs import SweepError
@@ -24,7 +36,9 @@ __all__ = [
     "SUMMARY_FILE",
     "TABLE_FILE",
     "check_folder",
+    "finish_folder",
     "locked",
+    "plot_name",
     "prepare_folder",
 ]
 
@@ -34,17 +48,49 @@ TABLE_FILE = "table.csv"
 SUMMARY_FILE = "summary.txt"
 PLOT_PREFIX = "summary_"
 LOCK_FILE = ".sweep.lock"
+FIXED_FILES = (DEFINITION_FILE, POINTS_FILE, TABLE_FILE, SUMMARY_FILE, LOCK_FILE)
+# A temporary file of atomic_write (``.<name>.<pid>.<random>.tmp``) left by a killed run.
+_TEMPORARY = re.compile(r"\.(?P<name>.+)\.\d+\.[0-9a-f]{8}\.tmp")
+
+
+def plot_name(key: str) -> str:
+    """The summary plot of a swept key."""
+    return PLOT_PREFIX + re.sub(r"[^A-Za-z0-9_.-]", "_", key) + ".png"
+
+
+def _own_temporary(out_dir: Path):
+    """Whether an unlisted name is a temporary file of a file the sweep writes, or its lock
+    (made before the marker is written), and so the sweep's own."""
+    listed = (marker_entries(out_dir) or set()) | set(FIXED_FILES) | {MARKER}
+
+    def own(name: str) -> bool:
+        match = _TEMPORARY.fullmatch(name)
+        return name == LOCK_FILE or (match is not None and match["name"] in listed)
+
+    return own
+
+
+def _refuse_foreign(out_dir: Path) -> None:
+    foreign = foreign_entries(out_dir, _own_temporary(out_dir))
+    if foreign:
+        raise SweepError(
+            f"--out {out_dir}: holds files this tool did not write ({named(foreign)}); "
+            "choose another folder"
+        )
 
 
 def check_folder(out_dir: Path, force: bool) -> None:
-    """Refuses a file, or a folder that holds something other than a sweep (unless force)."""
+    """Refuses a file, a folder that holds anything this tool did not write, and (unless
+    force) a folder that holds another command's result."""
     if out_dir.exists() and not out_dir.is_dir():
         raise SweepError(f"--out {out_dir}: exists and is not a folder")
+    if out_dir.is_dir():
+        _refuse_foreign(out_dir)
     if out_dir.is_dir() and not force and not (out_dir / DEFINITION_FILE).exists():
-        if any(p.name != LOCK_FILE for p in out_dir.iterdir()):
+        if any(p.name not in (LOCK_FILE, MARKER) for p in out_dir.iterdir()):
             raise SweepError(
-                f"--out {out_dir}: exists and is not a sweep folder (no {DEFINITION_FILE}); "
-                f"choose another folder or pass --force"
+                f"--out {out_dir}: holds a result of this tool that is not a sweep (no "
+                f"{DEFINITION_FILE}); pass --force to replace it, or choose another folder"
             )
     if not out_dir.exists():
         try:
@@ -70,17 +116,20 @@ def locked(out_dir: Path):
         os.close(fd)
 
 
-def _sweep_files(out_dir: Path) -> list[Path]:
-    names = [DEFINITION_FILE, POINTS_FILE, TABLE_FILE, SUMMARY_FILE]
-    files = [out_dir / name for name in names if (out_dir / name).exists()]
-    files += sorted(out_dir.glob(f"{PLOT_PREFIX}*.png"))
-    return files
+def _planned(definition: SweepDefinition) -> set[str]:
+    """Every file a run of `definition` may write into its folder."""
+    return set(FIXED_FILES) | {plot_name(key) for key in definition.keys}
 
 
 def prepare_folder(definition: SweepDefinition, out_dir: Path, force: bool) -> None:
-    """Checks (or, with force, clears) the folder and writes sweep.json. Called locked."""
+    """Checks (or, with force, clears) the folder and writes its marker and sweep.json.
+    Called locked: the folder is checked once more, it may have changed since check_folder."""
+    _refuse_foreign(out_dir)
+    listed = marker_entries(out_dir) or set()
+    own_temporary = _own_temporary(out_dir)
     for stale in out_dir.glob(".*.tmp"):  # temporary files of a killed run
-        stale.unlink(missing_ok=True)
+        if own_temporary(stale.name):
+            stale.unlink(missing_ok=True)
     wanted = definition.record()
     definition_path = out_dir / DEFINITION_FILE
     if definition_path.exists() and not force:
@@ -98,9 +147,12 @@ def prepare_folder(definition: SweepDefinition, out_dir: Path, force: bool) -> N
                 f"--out {out_dir}: holds another sweep (its {DEFINITION_FILE} differs in: "
                 f"{', '.join(differ)}); pass --force to start over, or choose another folder"
             )
-    if force:
-        for file in _sweep_files(out_dir):
-            file.unlink()
+    if force:  # start over: what this tool wrote here goes
+        for name in sorted(listed.intersection(os.listdir(out_dir)) - {LOCK_FILE, MARKER}):
+            (out_dir / name).unlink(missing_ok=True)
+        listed = set()
+    # Listed before they are written: a run killed at any moment leaves only listed files.
+    write_marker(out_dir, (listed & set(os.listdir(out_dir))) | _planned(definition))
     document = {
         "definition": wanted,
         "scenario_path": definition.scenario_source,
@@ -109,3 +161,9 @@ def prepare_folder(definition: SweepDefinition, out_dir: Path, force: bool) -> N
         "command": "admittance sweep " + definition.describe(),
     }
     atomic_write_text(definition_path, json.dumps(document, indent=2) + "\n")
+
+
+def finish_folder(definition: SweepDefinition, out_dir: Path) -> None:
+    """The marker, listing the files of the folder as the finished run leaves it."""
+    listed = (marker_entries(out_dir) or set()) | _planned(definition)
+    write_marker(out_dir, listed & set(os.listdir(out_dir)))

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -11,7 +10,7 @@ from admittance.diagrams.app import formatting
 from admittance.diagrams.app.formatting import number
 from admittance.diagrams.app.result_folder import atomic_write
 from admittance.diagrams.app.sweep.definition import SweepDefinition
-from admittance.diagrams.app.sweep.folder import PLOT_PREFIX
+from admittance.diagrams.app.sweep.folder import plot_name
 from admittance.diagrams.app.sweep.summary import DEGRADED_FRACTION, as_number
 
 __all__ = ["PLOTTED_METRICS", "plot_summary"]
@@ -26,10 +25,6 @@ PLOTTED_METRICS = (
     ("force_min_while_wall_moves", "min force while the wall moves (N)"),
     ("force_max_while_wall_moves", "max force while the wall moves (N)"),
 )
-
-
-def _plot_name(key: str) -> str:
-    return PLOT_PREFIX + re.sub(r"[^A-Za-z0-9_.-]", "_", key) + ".png"
 
 
 def plot_summary(definition: SweepDefinition, rows: Sequence[Mapping], out_dir: Path) -> list[Path]:
@@ -124,7 +119,7 @@ def plot_summary(definition: SweepDefinition, rows: Sequence[Mapping], out_dir: 
                 axis.set_xlim(-0.5, len(categories) - 0.5)
         figure.suptitle(f"sweep of {definition.scenario_name}: metrics against {key}")
         figure.tight_layout()
-        path = out_dir / _plot_name(key)
+        path = out_dir / plot_name(key)
         atomic_write(path, lambda temporary, f=figure: f.savefig(temporary, format="png", dpi=100))
         written.append(path)
     return written

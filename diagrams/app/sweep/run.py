@@ -11,10 +11,12 @@ from admittance.diagrams.app.formatting import number, seconds
 from admittance.diagrams.app.result_folder import atomic_write_text
 from admittance.diagrams.app.sweep.definition import SweepDefinition, SweepPoint
 from admittance.diagrams.app.sweep.folder import (
+    LOCK_FILE,
     POINTS_FILE,
     SUMMARY_FILE,
     TABLE_FILE,
     check_folder,
+    finish_folder,
     locked,
     prepare_folder,
 )
@@ -27,6 +29,7 @@ from admittance.diagrams.app.sweep.runner import (
     run_tasks,
     sigterm_interrupts,
 )
+from admittance.diagrams.app.sweep.specs import SweepError
 from admittance.diagrams.app.sweep.summary import summarize, table_text
 
 __all__ = ["SweepOutcome", "run_sweep"]
@@ -87,9 +90,15 @@ def run_sweep(
     out_dir = Path(out_dir)
     check_folder(out_dir, force)
     out_dir.mkdir(parents=True, exist_ok=True)
+    lock_was_there = (out_dir / LOCK_FILE).exists()
     start = time.perf_counter()
     with locked(out_dir):
-        prepare_folder(definition, out_dir, force)
+        try:
+            prepare_folder(definition, out_dir, force)
+        except SweepError:  # the folder changed since check_folder: leave it as it was
+            if not lock_was_there:
+                (out_dir / LOCK_FILE).unlink(missing_ok=True)
+            raise
         points_path = out_dir / POINTS_FILE
         rows, bad = read_points(points_path)
         if bad:
@@ -153,6 +162,7 @@ def run_sweep(
         atomic_write_text(table, table_text(definition.keys, ours))
         atomic_write_text(out_dir / SUMMARY_FILE, summary)
         plots = plot_summary(definition, ours, out_dir) if ours else []
+        finish_folder(definition, out_dir)
     return SweepOutcome(
         out_dir=out_dir,
         total=total,
