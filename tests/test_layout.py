@@ -191,3 +191,18 @@ def test_the_command_line_loads_every_drake_module_the_project_imports():
                     imported.update(a.name for a in node.names if a.name.startswith("pydrake"))
     assert "pydrake.systems.framework" in imported
     assert imported <= set(DRAKE_MODULES), sorted(imported - set(DRAKE_MODULES))
+
+
+def test_no_public_name_of_a_package_hides_one_of_its_modules():
+    """`from admittance.diagrams.run import simulate` is the function and
+    `import admittance.diagrams.run.simulation` the module: a package's re-exported names
+    never take a module's name (monkeypatching `package.module` would patch a function)."""
+    import importlib
+    import pkgutil
+
+    packages = [p for p in CONCEPTS if p != "app"]
+    for name in packages:
+        package = importlib.import_module(f"admittance.diagrams.{name}")
+        for module in pkgutil.iter_modules(package.__path__):
+            loaded = importlib.import_module(f"{package.__name__}.{module.name}")
+            assert getattr(package, module.name) is loaded, (name, module.name)
