@@ -120,3 +120,74 @@ def test_deeper_plans_keep_fmax_and_the_approach_bound(depth_mm):
         1.0 + SPEED_ALLOWANCE
     )
     assert result.metrics["contact_losses"] == 0
+
+
+def _payload_run(told: bool, duration: float = 4.5, *extra: str):
+    overrides = _slow_plan(30, duration, "wall.stiffness=1e6", "arm.payload_mass=0.5", *extra) + (
+        ["safety.payload_mass=0.5"] if told else []
+    )
+    return run_scenario(load_scenario("unexpected_obstacle", overrides))
+
+
+def test_a_payload_the_layer_was_told_about_touches_under_its_bound():
+    """A 0.5 kg point mass welded at the fingertip of the simulated arm, the layer told
+    (safety.payload_mass = 0.5), on a wall at Ke_max = 1e6 N/m (the bound's design point):
+    the layer's apparent mass at the contact is the arm's with the payload, 1.41 kg
+    (0.909 + 0.5, and the exact point-mass term), v_max falls to 7.50 mm/s, and the first
+    contact, at 7.46 mm/s, peaks at 7.06 N. Told nothing, the layer approaches at the bare
+    arm's 9.34 mm/s and strikes 8.15 N (docs/safety.md, section 5)."""
+    result = _payload_run(told=True)
+    safety = result.metrics["safety"]
+    assert result.metrics["peak_force"] <= FMAX
+    assert safety["first_contact_apparent_mass"] == pytest.approx(1.41, abs=0.01)
+    assert safety["first_contact_speed"] <= safety["first_contact_approach_bound"] * (
+        1.0 + SPEED_ALLOWANCE
+    )
+    assert safety["first_contact_approach_bound"] == pytest.approx(7.50e-3, rel=0.01)
+
+
+@pytest.mark.slow
+def test_with_reflected_inertia_the_first_contact_stays_under_fmax():
+    """arm.reflected_inertia: the plant's M(q) carries the rotors (2.13 kg at the wall
+    against 0.909 kg), the layer takes it from there: v_max 6.09 mm/s, first contact at
+    6.06 mm/s on the 1e6 N/m wall, 7.07 N."""
+    result = run_scenario(
+        load_scenario(
+            "unexpected_obstacle",
+            _slow_plan(30, 5.5, "wall.stiffness=1e6", "arm.reflected_inertia=true"),
+        )
+    )
+    safety = result.metrics["safety"]
+    assert result.metrics["peak_force"] <= FMAX
+    assert safety["first_contact_apparent_mass"] == pytest.approx(2.13, abs=0.01)
+    assert safety["first_contact_speed"] <= safety["first_contact_approach_bound"] * (
+        1.0 + SPEED_ALLOWANCE
+    )
+
+
+def test_the_reach_metric_names_the_first_sample_the_arm_could_not_follow(arm_plant):
+    """reach_limit: only samples above Fmax count; there, an actuator at its effort limit
+    or a command out of reach (the 0.4 m of two 0.2 m links plus the 0.1 m last link: x =
+    0.6 m at y = -0.25 m is beyond it) stops the layer, and the first such time is named."""
+    from types import SimpleNamespace
+
+    from admittance.diagrams.loop.safety_layer import reach_limit
+    from admittance.diagrams.robots.planar_arm import SolvePlanarInverseKinematics
+
+    pose = [0.19, -0.25, np.pi / 2]
+    q = SolvePlanarInverseKinematics(arm_plant, "fingertip", pose, [-0.45, 1.66, 0.36])
+    limits = np.array([30.0, 20.0, 5.0])
+    result = SimpleNamespace(
+        scenario=load_scenario("unexpected_obstacle", QUOTED),
+        time=np.array([0.0, 1.0, 2.0, 3.0]),
+        force=np.array([12.0, 5.0, 12.0, 12.0]),
+        actuation=np.array([[0.0, 20.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]),
+        desired_position=np.array([pose, pose, pose, [0.6, -0.25, np.pi / 2]]),
+        reference_offset=np.zeros((4, 3)),
+        joint_positions=np.array([q, q, q, q]),
+    )
+    assert reach_limit(result, arm_plant, limits) == 0.0  # an actuator at its limit
+    result.actuation[0, 1] = 19.0
+    assert reach_limit(result, arm_plant, limits) == 3.0  # the command out of reach
+    result.force[3] = 10.0  # at Fmax, not above it
+    assert reach_limit(result, arm_plant, limits) is None
