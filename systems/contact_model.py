@@ -70,15 +70,29 @@ __all__ = [
 ]
 
 
-def apparent_mass(mass_matrix, jacobian_row) -> float:
+def apparent_mass(
+    mass_matrix, jacobian_row, *, payload_mass: float = 0.0, translational_jacobian=None
+) -> float:
     """m = 1 / (j M^-1 j^T): the mass a force along the row's direction meets, kg.
+
+    A payload m_p (a tool or a grasped part the plant does not model) is a point mass at
+    the fingertip: its kinetic energy m_p |p'|^2 / 2 adds m_p J_t^T J_t to M, J_t the
+    fingertip point's translational rows of J. The apparent mass then grows by at least
+    m_p: 1 / (e^T A^-1 e) = min over e^T u = 1 of u^T A u (A the task-space inertia), which
+    is superadditive, and the payload's own term is m_p (1 + u_y^2) >= m_p.
 
     Args:
         mass_matrix: the plant's M(q), nv x nv (symmetric positive definite).
         jacobian_row: j, the row of the task Jacobian along the wall normal (nv,).
+        payload_mass: m_p, kg (>= 0).
+        translational_jacobian: J_t (2 x nv or 3 x nv), needed when payload_mass > 0.
     """
     row = np.asarray(jacobian_row, dtype=float)
-    return 1.0 / float(row @ np.linalg.solve(np.asarray(mass_matrix, dtype=float), row))
+    inertia = np.asarray(mass_matrix, dtype=float)
+    if payload_mass > 0.0:
+        rows = np.asarray(translational_jacobian, dtype=float)
+        inertia = inertia + payload_mass * rows.T @ rows
+    return 1.0 / float(row @ np.linalg.solve(inertia, row))
 
 
 def damping_ratio(mass: float, kp: float, kd: float, stiffness: float) -> float:

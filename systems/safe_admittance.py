@@ -2,7 +2,10 @@
 
 On the wall-normal axis, with the trusted force F (systems/fault_detector.py), the
 stiffness estimate k_hat (systems/stiffness_estimator.py) and the reduced contact model
-(systems/contact_model.py, m the apparent mass from the plant):
+(systems/contact_model.py, m the apparent mass from the plant as built, the motors'
+reflected inertia included when the plant has it, and a stated payload m_p at the
+fingertip: M(q) + m_p J_t^T J_t, J_t the fingertip point's translational rows of J;
+contact_model.apparent_mass):
 
 **The law in contact is eq. 10 with a scheduled gain.** With Gamma_s = s Gamma,
 
@@ -30,10 +33,19 @@ contact mode the damping ratio zeta_target at Ke_max (contact_model.injected_dam
 first contact with less than 0.19 always bounces. At an equilibrium x' = 0: the term adds
 damping and nothing else.
 
-**Approach.** While F < F_c (no contact) the reference may approach the wall no faster
+**The plan's velocity.** The PID's D term is Kd (dXd/dt - x') (docs/paper-notes.md,
+section 10): a plan moving along the normal pushes Kd dXd/dt through it whatever Xr is.
+Xr carries -(Kd / Kp) dXd/dt, which the PID's spring turns into -Kd dXd/dt: the PID then
+acts as Kp (Xd + y + P - X) - (Kd + c) x' along the normal, the reduced model's
+m x'' + (Kd + c) x' + (Kp + Ke) x = Kp Xc with Xc = Xd + y + P (systems/contact_model.py)
+for any plan. With the plan still along the normal the term is zero.
+
+**Approach.** While F < F_c (no contact) the command Xd + y may approach the wall no faster
 than v_max, the speed whose impact on a wall of Ke_max peaks at Fmax
-(contact_model.safe_approach_speed, with Kd + c): dy/dt <= v_max - dXd/dt. When F reaches
-F_c the limit is lifted; y and E are continuous there, so Xr does not jump.
+(contact_model.safe_approach_speed, with Kd + c and the apparent mass with the payload
+allowance): dy/dt <= v_max - dXd/dt, applied after every other term of dy/dt (the push
+bound's back-calculation included), so that nothing lifts it. When F reaches F_c the limit
+is lifted; y and E are continuous there, so Xr does not jump.
 
 **Advance in contact.** A reading that drops (a fault not yet detected, or a real loss of
 force) must not throw the reference into the wall. E_u <= E_cap = v_adv / (Gamma_s K)
@@ -45,15 +57,23 @@ is caught; that is Fmax - Fr for
 
     v_adv = (Fmax - Fr) / (Kp (alpha + t_d) (1 + os)).
 
-Retracting is never limited. Within |E| <= E_cap (normal tracking) the law is exactly the
-paper's; beyond, it pushes less than the paper's would.
+In contact a plan that advances into the wall does not move the command: dy/dt loses
+max(dXd/dt, 0), so Xd + y advances only at the law's own rate, at most v_adv. Retracting is
+never limited, and the layer has no bound on how far Xr retracts (admittance.max_retract
+is the paper's law's travel, not the layer's): only the arm's reach stops it
+(diagrams/loop/safety_layer.py reports it). Within |E| <= E_cap and with the plan still or
+receding (normal tracking) the law is exactly the paper's; beyond, it pushes less than the
+paper's would.
 
-**Faults.** While the detector flags the reading, y does not advance (dy/dt <= 0) and the
-law runs on the held reading, so Xr holds (or retracts). When the flag clears it returns
-at the rates above: v_adv in contact, v_max in free motion.
+**Faults.** While the detector flags the reading, the command does not advance
+(dy/dt <= min(0, -dXd/dt)) and the law runs on the held reading, so Xd + y holds (or
+retracts). When the flag clears it returns at the rates above: v_adv in contact, v_max in
+free motion.
 
-Anti-windup: y + P is kept within [-max_retract, max_push] around Xd by back-calculation
-(time constant 10 ms), as in systems/optimal_admittance.py.
+Push bound: y + P is kept below max_push by back-calculation (time constant 10 ms, as in
+systems/optimal_admittance.py), without a hard clamp of the output: a clamp would tie the
+command to Xd and let it approach at the plan's speed. y + P passes max_push by at most
+10 ms times the law's rate (0.1 mm at v_adv = 11.5 mm/s). The limits above act after it.
 
 For AutoDiffXd (Linearize), the schedule's inputs that are not the loop's (m, c, v_max,
 v_adv, the branch of each min) are taken at their values: at an equilibrium they are
@@ -123,7 +143,6 @@ def SafeAdmittance_(T):
             max_force: float,
             force_bound_gain: float,
             max_push: float,
-            max_retract: float,
             max_stiffness: float,
             damping_ratio: float,
             stability_margin: float,
@@ -131,6 +150,7 @@ def SafeAdmittance_(T):
             contact_force: float,
             detection_delay: float,
             schedule_time_constant: float = 0.005,
+            payload_mass: float = 0.0,
             normal_axis: int = 0,
             num_axes: int = 3,
             converter=None,
@@ -143,7 +163,8 @@ def SafeAdmittance_(T):
                 pid_kp, pid_kd: the PID's gains along the normal, N/m and N s/m.
                 max_force: Fmax, N (finite).
                 force_bound_gain: mu of the force-bound penalty.
-                max_push, max_retract: bounds of Xr around Xd, m.
+                max_push: the bound of Xr into the wall around Xd, m (the layer has no
+                    bound on the retract side: only the arm's reach).
                 max_stiffness: Ke_max, the stated upper bound on the wall stiffness, N/m.
                 damping_ratio: zeta_target of the contact mode at Ke_max.
                 stability_margin: the factor between Gamma* and the scheduled Gamma.
@@ -151,6 +172,8 @@ def SafeAdmittance_(T):
                 contact_force: F_c, N.
                 detection_delay: t_d, the fault detector's longest delay, s.
                 schedule_time_constant: tau_g, s.
+                payload_mass: m_p, an unmodelled payload or tool at the fingertip, kg
+                    (>= 0): added to the plant's M(q) as a point mass there.
                 normal_axis: the wall normal's index in X.
                 num_axes: size of Xr.
             """
@@ -162,7 +185,6 @@ def SafeAdmittance_(T):
                 "max_force": max_force,
                 "force_bound_gain": force_bound_gain,
                 "max_push": max_push,
-                "max_retract": max_retract,
                 "max_stiffness": max_stiffness,
                 "damping_ratio": damping_ratio,
                 "stability_margin": stability_margin,
@@ -177,6 +199,7 @@ def SafeAdmittance_(T):
                 ("alpha", alpha),
                 ("pid_kd", pid_kd),
                 ("filter_time_constant", filter_time_constant),
+                ("payload_mass", payload_mass),
             ):
                 if not (math.isfinite(value) and value >= 0):
                     raise ValueError(f"{name} must be finite and >= 0, got {value}")
@@ -187,6 +210,7 @@ def SafeAdmittance_(T):
                 alpha=float(alpha),
                 pid_kd=float(pid_kd),
                 filter_time_constant=float(filter_time_constant),
+                payload_mass=float(payload_mass),
                 normal_axis=int(normal_axis),
                 num_axes=int(num_axes),
             )
@@ -198,7 +222,7 @@ def SafeAdmittance_(T):
             self._max_force = float(max_force)
             self._mu = float(force_bound_gain)
             self._max_push = float(max_push)
-            self._max_retract = float(max_retract)
+            self._payload = float(payload_mass)
             self._max_stiffness = float(max_stiffness)
             self._damping_ratio = float(damping_ratio)
             self._margin = float(stability_margin)
@@ -255,6 +279,17 @@ def SafeAdmittance_(T):
             """m, c, v_max, v_adv, the target schedule and the contact state at `context`."""
             return self._law_cache.Eval(context)[2]
 
+        @property
+        def plant(self):
+            """The arm's plant the layer takes M(q) and J(q) from."""
+            return self._plant
+
+        def numbers_at(self, state, force_reference: float) -> SafetyNumbers:
+            """m, m_p, c, v_max and v_adv at the plant state `state` (q, v), with the
+            schedule at the prior Ke_max: the bounds a logged sample was held to."""
+            self._kinematics.set_state(state)
+            return self._derived(self._kinematics.jacobian(), self._max_stiffness, force_reference)
+
         def _derived(self, jacobian, stiffness_estimate: float, force_reference: float):
             """The schedule's numbers (values only) from J and M(q) at the state the
             kinematics were last set to."""
@@ -262,7 +297,12 @@ def SafeAdmittance_(T):
             if T is not float:
                 jacobian = np.array([[_value(x) for x in row] for row in jacobian])
                 mass_matrix = np.array([[_value(x) for x in row] for row in mass_matrix])
-            mass = contact_model.apparent_mass(mass_matrix, jacobian[self._axis])
+            mass = contact_model.apparent_mass(
+                mass_matrix,
+                jacobian[self._axis],
+                payload_mass=self._payload,
+                translational_jacobian=jacobian[:2],
+            )
             damping = contact_model.injected_damping(
                 mass, self._kp, self._kd, self._max_stiffness, self._damping_ratio
             )
@@ -288,6 +328,7 @@ def SafeAdmittance_(T):
             )
             return SafetyNumbers(
                 apparent_mass=mass,
+                payload_mass=self._payload,
                 injected_damping=damping,
                 approach_speed=approach_speed,
                 advance_speed=advance_speed,
@@ -300,18 +341,19 @@ def SafeAdmittance_(T):
             """Xc = the tip's position along the normal, s = its target (a run's start).
 
             Raises:
-                ValueError: the tip is farther from Xd than the travel bounds of Xr allow
-                    (the reference could not start at the tip).
+                ValueError: the tip is farther into the wall's side of Xd than max_push
+                    (the reference could not start at the tip). The retract side has no
+                    bound with the layer.
             """
             state = self.estimated_state_input.Eval(context)
             self._kinematics.set_state(state)
             tip = _value(self._kinematics.pose()[self._axis])
             desired = _value(self.desired_position_input.Eval(context)[self._axis])
             offset = tip - desired
-            if not -self._max_retract <= offset <= self._max_push:
+            if offset > self._max_push:
                 raise ValueError(
-                    f"the tip starts {offset:+.4g} m from Xd along the normal, outside "
-                    f"[-{self._max_retract:g}, {self._max_push:g}] m"
+                    f"the tip starts {offset:+.4g} m from Xd along the normal, beyond "
+                    f"max_push = {self._max_push:g} m"
                 )
             self._set_offset(context, offset)
 
@@ -358,20 +400,26 @@ def SafeAdmittance_(T):
             rate = integral_gain * error - self._gamma * self._stiffness * scale_rate * (
                 self._alpha * error
             )
+            law = y + proportional
+            # The push bound: back-calculation only (a clamp would tie Xc to Xd).
+            if _value(law) > self._max_push:
+                rate = rate + (T(self._max_push) - law) / WINDUP_TIME_CONSTANT
+            # The limits on the command Xd + y, after every other term of dy/dt.
             desired_speed = self.desired_velocity_input.Eval(context)[self._axis]
+            plan_speed = _value(desired_speed)
             if not numbers["in_contact"]:
                 approach = numbers["approach_speed"] - desired_speed
                 if _value(rate) > _value(approach):
                     rate = approach
-            if fault and _value(rate) > 0.0:
-                rate = T(0.0)
-            law = y + proportional
-            law_value = _value(law)
-            if law_value > self._max_push or law_value < -self._max_retract:
-                bound = self._max_push if law_value > 0 else -self._max_retract
-                rate = rate + (T(bound) - law) / WINDUP_TIME_CONSTANT
-                law = T(bound)
-            offset = law - (numbers["injected_damping"] / self._kp) * speed
+            elif plan_speed > 0.0:
+                rate = rate - desired_speed
+            if fault and _value(rate) > min(0.0, -plan_speed):
+                rate = T(0.0) if plan_speed <= 0.0 else -desired_speed
+            offset = (
+                law
+                - (numbers["injected_damping"] / self._kp) * speed
+                - (self._kd / self._kp) * desired_speed
+            )
             output = [T(0.0)] * self._num_axes
             output[self._axis] = offset
             value.set_value((np.array(output), np.array([rate, scale_rate]), numbers, proportional))

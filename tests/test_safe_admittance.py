@@ -41,7 +41,6 @@ def _law(plant, **overrides):
         max_force=FMAX,
         force_bound_gain=MU,
         max_push=0.01,
-        max_retract=0.1,
         max_stiffness=1e6,
         damping_ratio=0.25,
         stability_margin=3.0,
@@ -170,11 +169,13 @@ def test_the_reference_carries_a_damper_along_the_normal(arm_plant, law):
     assert moving - still == pytest.approx(-c / KP * 0.01, rel=1e-3)
 
 
-def test_the_offset_stays_within_its_travel_with_back_calculation(law):
+def test_the_offset_is_pulled_below_its_push_bound_by_back_calculation_alone(law):
+    """y = 0.02 m, E = 0.2 N in contact: y + P = 0.02 + 0.025 * 0.1 * 0.2 = 0.0205 m, past
+    max_push = 0.01 m. No clamp of the output (a clamp would tie Xc to Xd): Xr = 0.0205 m,
+    and dy/dt gains (0.01 - 0.0205) / 0.01 s = -1.05 m/s."""
     offset, y_rate, _ = _evaluate(law, FR - 0.2, y=0.02)
-    assert offset == pytest.approx(0.01)
-    unclamped = 0.02 + 0.025 * ALPHA * 0.2
-    assert y_rate == pytest.approx(0.025 * 0.2 + (0.01 - unclamped) / 0.01)
+    assert offset == pytest.approx(0.0205, rel=1e-12)
+    assert y_rate == pytest.approx(0.025 * 0.2 + (0.01 - 0.0205) / 0.01, rel=1e-12)
 
 
 def test_a_run_starts_with_the_reference_at_the_tip(arm_plant, law):
@@ -282,35 +283,107 @@ def test_the_force_bound_penalty_grows_with_the_excess_over_the_guard(law):
     assert offset == pytest.approx(0.05 - 0.1125, rel=1e-12)
 
 
-def test_the_offset_stays_above_its_retract_bound_with_back_calculation(law):
-    """y = -0.2 m: Xr = y + 0.025 * 0.1 * 0.2 = -0.1995 m is past -max_retract = -0.1 m:
-    Xr = -0.1 m and dy/dt gains (-0.1 - (-0.1995)) / 0.01 s."""
+def test_the_layer_has_no_retract_bound(law):
+    """y = -0.2 m (twice the paper's default max_retract): Xr = y + 0.025 * 0.1 * 0.2 =
+    -0.1995 m and dy/dt = 0.025 * 0.2 = 5 mm/s, the law's own: nothing pulls it back."""
     offset, y_rate, _ = _evaluate(law, FR - 0.2, y=-0.2)
-    assert offset == pytest.approx(-0.1, rel=1e-12)
-    unclamped = -0.2 + 0.025 * ALPHA * 0.2
-    assert y_rate == pytest.approx(0.025 * 0.2 + (-0.1 - unclamped) / 0.01, rel=1e-12)
+    assert offset == pytest.approx(-0.1995, rel=1e-12)
+    assert y_rate == pytest.approx(0.025 * 0.2, rel=1e-12)
 
 
-@pytest.mark.parametrize("desired_x", [POSE[0] - 0.05, POSE[0] + 0.15])
-def test_a_run_cannot_start_with_the_tip_beyond_the_travel(law, desired_x):
-    """The tip at x = 0.2 m and Xd 5 cm behind it (past max_push = 1 cm) or 15 cm ahead of
-    it (past max_retract = 10 cm): the reference could not start at the tip."""
+# The plan moving into the wall at 20 mm/s; the PID's Kd / Kp = 50 / 2500 = 0.02 s.
+PLAN_SPEED = 0.02
+PLAN_SHIFT = 0.02 * PLAN_SPEED  # (Kd / Kp) dXd/dt = 0.4 mm
+
+
+def test_the_approach_limit_acts_after_the_push_bound_s_back_calculation(law):
+    """Free motion (F = 0), the plan at 20 mm/s toward the wall. E = Fr = 5 N is capped at
+    E_cap = v_adv / (Gamma K): P = alpha v_adv = 1.1539 mm, Gamma K E_cap = v_adv.
+
+    y = -0.15 m (past the paper's max_retract): dy/dt = v_max - 0.02 = -10.73 mm/s exactly,
+    so that Xd + y approaches at v_max; before the fix the retract bound's back-calculation
+    added (-0.1 - (y + P)) / 0.01 s = +4.88 m/s after the approach limit, and the clamped
+    Xr = -0.1 m let Xc follow the plan at 20 mm/s. Xr = y + P - (Kd / Kp) dXd/dt.
+
+    y = 0.02 m (past max_push): the back-calculation (0.01 - (y + P)) / 0.01 s = -1.1154 m/s
+    is more negative than the approach limit, which keeps it: dy/dt = v_adv - 1.1154 m/s."""
+    approach = model.safe_approach_speed(FMAX, MASS, KP, TOTAL_DAMPING, 1e6)
+    assert approach == pytest.approx(9.27e-3, rel=2e-3)
+    push = ALPHA * ADVANCE
+    offset, y_rate, _ = _evaluate(law, 0.0, y=-0.15, desired_velocity=[PLAN_SPEED, 0.0, 0.0])
+    assert y_rate == pytest.approx(approach - PLAN_SPEED, rel=2e-3)
+    assert offset == pytest.approx(-0.15 + push - PLAN_SHIFT, rel=1e-9)
+    offset, y_rate, _ = _evaluate(law, 0.0, y=0.02, desired_velocity=[PLAN_SPEED, 0.0, 0.0])
+    assert y_rate == pytest.approx(ADVANCE + (0.01 - (0.02 + push)) / 0.01, rel=1e-9)
+    assert offset == pytest.approx(0.02 + push - PLAN_SHIFT, rel=1e-9)
+
+
+def test_in_contact_a_plan_advancing_into_the_wall_does_not_move_the_command(law):
+    """F = 4.8 N (contact), the plan at 20 mm/s into the wall: dy/dt = 0.025 * 0.2 - 0.02 =
+    -15 mm/s, so Xd + y advances at the law's 5 mm/s alone. A receding plan (-20 mm/s) is
+    followed: dy/dt is the law's. A flagged reading with the plan advancing: dy/dt = -20
+    mm/s (the command holds); with it receding, 0 (the command follows it out)."""
+    _, y_rate, _ = _evaluate(law, FR - 0.2, desired_velocity=[PLAN_SPEED, 0.0, 0.0])
+    assert y_rate == pytest.approx(0.025 * 0.2 - PLAN_SPEED, rel=1e-12)
+    _, y_rate, _ = _evaluate(law, FR - 0.2, desired_velocity=[-PLAN_SPEED, 0.0, 0.0])
+    assert y_rate == pytest.approx(0.025 * 0.2, rel=1e-12)
+    _, y_rate, _ = _evaluate(
+        law, FR - 0.2, desired_velocity=[PLAN_SPEED, 0.0, 0.0], sensor_fault=[1.0]
+    )
+    assert y_rate == pytest.approx(-PLAN_SPEED, rel=1e-12)
+    _, y_rate, _ = _evaluate(
+        law, FR - 0.2, desired_velocity=[-PLAN_SPEED, 0.0, 0.0], sensor_fault=[1.0]
+    )
+    assert y_rate == 0.0
+
+
+def test_the_reference_cancels_the_pid_s_feedforward_of_the_plan_s_velocity(law):
+    """The PID's D term is Kd (dXd/dt - x'): Xr carries -(Kd / Kp) dXd/dt, whose force
+    through Kp is -Kd dXd/dt. At 20 mm/s: Xr lower by 0.02 * 0.02 = 0.4 mm."""
+    still, _, _ = _evaluate(law, FR - 0.2)
+    moving, _, _ = _evaluate(law, FR - 0.2, desired_velocity=[PLAN_SPEED, 0.0, 0.0])
+    assert moving - still == pytest.approx(-PLAN_SHIFT, rel=1e-9)
+
+
+def test_a_payload_adds_a_point_mass_at_the_fingertip(arm_plant, law):
+    """m_p = 0.5 kg: M + m_p J_t^T J_t; the apparent mass along x grows by at least m_p
+    (contact_model.apparent_mass), and the approach speed falls with it."""
+    system, context, q = law
+    loaded = _law(arm_plant, payload_mass=0.5)
+    loaded_context = loaded.CreateDefaultContext()
+    for index in range(system.num_input_ports()):
+        port = system.get_input_port(index)
+        loaded.get_input_port(index).FixValue(loaded_context, port.Eval(context))
+    bare, heavy = system.numbers(context), loaded.numbers(loaded_context)
+    assert heavy["payload_mass"] == 0.5
+    assert heavy["apparent_mass"] >= bare["apparent_mass"] + 0.5
+    assert heavy["apparent_mass"] < bare["apparent_mass"] + 0.5 * 1.01
+    assert heavy["approach_speed"] < bare["approach_speed"]
+
+
+def test_a_run_cannot_start_with_the_tip_beyond_the_push_bound(law):
+    """The tip at x = 0.2 m and Xd 5 cm behind it (past max_push = 1 cm): the reference
+    could not start at the tip. 15 cm ahead of it is a start (no retract bound)."""
     system, context, _ = law
-    system.desired_position_input.FixValue(context, [desired_x, POSE[1], POSE[2]])
-    with pytest.raises(ValueError, match="outside"):
+    system.desired_position_input.FixValue(context, [POSE[0] - 0.05, POSE[1], POSE[2]])
+    with pytest.raises(ValueError, match="beyond max_push"):
         system.start_at_tip(context)
+    system.desired_position_input.FixValue(context, [POSE[0] + 0.15, POSE[1], POSE[2]])
+    system.start_at_tip(context)
+    assert POSE[0] + 0.15 + system.reference_offset_output.Eval(context)[0] == pytest.approx(
+        POSE[0]
+    )
 
 
-@pytest.mark.parametrize("side", ["push", "retract"])
-def test_a_run_may_start_with_the_tip_exactly_at_a_travel_bound(arm_plant, law, side):
-    """A law whose bound is exactly the tip's offset from Xd (tip - Xd, exact in floating
+def test_a_run_may_start_with_the_tip_exactly_at_the_push_bound(arm_plant, law):
+    """A law whose max_push is exactly the tip's offset from Xd (tip - Xd, exact in floating
     point: Xd within a factor 2 of the tip's x) starts there."""
     _, context, q = law
     tip = PlanarFrameKinematics(arm_plant, "fingertip")
     tip.set_state(np.concatenate([q, np.zeros(3)]))
     x = tip.pose()[0]
-    desired = x - 0.01 if side == "push" else x + 0.05
-    bounds = dict(max_push=x - desired) if side == "push" else dict(max_retract=desired - x)
+    desired = x - 0.01
+    bounds = dict(max_push=x - desired)
     system = _law(arm_plant, **bounds)
     context = system.CreateDefaultContext()
     system.estimated_state_input.FixValue(context, np.concatenate([q, np.zeros(3)]))
@@ -332,6 +405,7 @@ def test_a_run_may_start_with_the_tip_exactly_at_a_travel_bound(arm_plant, law, 
         ("stiffness", math.inf, "stiffness must be finite and > 0"),
         ("alpha", -0.5, "alpha must be finite and >= 0"),
         ("pid_kd", math.inf, "pid_kd must be finite and >= 0"),
+        ("payload_mass", -0.5, "payload_mass must be finite and >= 0"),
     ],
 )
 def test_bad_arguments_name_the_argument(arm_plant, name, value, message):

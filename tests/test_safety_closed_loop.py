@@ -201,6 +201,9 @@ def test_the_monte_carlo_keeps_every_guarantee(tmp_path):
             ["safety.enabled=true", "admittance.max_force=10", "pid.period=0.001"],
             "safety.enabled: must be used with the continuous controller",
         ),
+        (["safety.payload_mass=-0.1"], "safety.payload_mass: must be in [0, 10] kg, got -0.1"),
+        (["safety.payload_mass=12"], "safety.payload_mass: must be in [0, 10] kg, got 12.0"),
+        (["arm.payload_mass=11"], "arm.payload_mass: must be in [0, 10] kg, got 11.0"),
     ],
 )
 def test_bad_safety_input_is_one_line_naming_the_key(overrides, message):
@@ -211,11 +214,16 @@ def test_bad_safety_input_is_one_line_naming_the_key(overrides, message):
     assert str(error.value).startswith(message) and "\n" not in str(error.value)
 
 
-def test_a_tip_beyond_the_reference_s_travel_cannot_start_with_the_layer():
-    """safe_contact starts the tip 6 cm in front of Xd; with max_retract 5 cm the reference
-    could not start at the tip (it would jump, and pull the arm): one line, before any run."""
+def test_a_tip_beyond_the_reference_s_push_bound_cannot_start_with_the_layer():
+    """The plan 2 cm behind the tip's start (x = 0.14 m, Xd at 0.12 m), past max_push =
+    1 cm: the reference could not start at the tip (it would jump, and pull the arm): one
+    line, before any run. The retract side has no bound with the layer: safe_contact's tip
+    6 cm in front of Xd starts with max_retract 5 cm."""
     from admittance.diagrams.loop.planar_arm import CheckScenarioStarts
     from admittance.diagrams.scenario.schema import ScenarioError
 
-    with pytest.raises(ScenarioError, match=r"^arm.initial_position, admittance.max_retract"):
-        CheckScenarioStarts(load_scenario("safe_contact", ["admittance.max_retract=0.05"]))
+    with pytest.raises(ScenarioError, match=r"^arm.initial_position, admittance.max_push"):
+        CheckScenarioStarts(
+            load_scenario("safe_contact", ["trajectory.center=[0.12,-0.25,1.5707963267948966]"])
+        )
+    CheckScenarioStarts(load_scenario("safe_contact", ["admittance.max_retract=0.05"]))

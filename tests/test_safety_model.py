@@ -52,6 +52,21 @@ def test_apparent_mass_of_a_hand_two_by_two():
     assert model.apparent_mass([[2.0, 0.5], [0.5, 1.0]], [1.0, 1.0]) == pytest.approx(0.875)
 
 
+def test_a_payload_is_a_point_mass_at_the_fingertip_by_hand():
+    """M = [[2, 0.5], [0.5, 1]], J_t = I, m_p = 1 kg: M + m_p J_t^T J_t = [[3, 0.5], [0.5, 2]],
+    det 5.75, so 1 / (M'^-1)_xx = 5.75 / 2 = 2.875 kg, above 1.75 + 1 = 2.75 kg (the
+    apparent mass grows by at least m_p); with M diagonal, exactly 2 + 1 = 3 kg."""
+    mass = [[2.0, 0.5], [0.5, 1.0]]
+    loaded = model.apparent_mass(
+        mass, [1.0, 0.0], payload_mass=1.0, translational_jacobian=np.eye(2)
+    )
+    assert loaded == pytest.approx(2.875, rel=1e-12)
+    diagonal = model.apparent_mass(
+        [[2.0, 0.0], [0.0, 1.0]], [1.0, 0.0], payload_mass=1.0, translational_jacobian=np.eye(2)
+    )
+    assert diagonal == pytest.approx(3.0, rel=1e-12)
+
+
 def test_undamped_impact_peaks_at_v_times_sqrt_of_m_ke():
     # Kp -> 0, Kd = 0: F_peak = Ke v / w = v sqrt(m Ke) = 0.01 sqrt(1 * 1e4) = 1 N.
     assert model.impact_peak_force(0.01, 1.0, 1e-9, 0.0, 1e4) == pytest.approx(1.0, rel=1e-6)
@@ -207,3 +222,43 @@ def test_an_ideal_sensor_with_kd_alpha_at_or_above_m_has_no_limit(alpha):
     Kd Kt + g (Kd alpha - m) > 0 for every g once Kd alpha >= m (m = 1, Kd = 2: alpha =
     0.5 exactly at the edge, 0.75 above it)."""
     assert math.isinf(model.critical_loop_gain(1.0, 1.0, 2.0, 2.0, alpha, 0.0))
+
+
+@pytest.mark.parametrize("reflected_inertia", [False, True])
+def test_the_payload_allowance_is_the_mass_of_a_payload_welded_at_the_fingertip(
+    reflected_inertia,
+):
+    """The layer's allowance (M + m_p J_t^T J_t) against Drake's own M(q) of the arm with a
+    0.5 kg point mass welded at the fingertip (arm.payload_mass), at (0.2, -0.25, pi/2):
+    the same apparent mass (1e-9), with and without the motors' reflected inertia, which
+    raises the bare arm's 0.92 kg (test above) to 2.18 kg."""
+    from pydrake.systems.framework import DiagramBuilder
+
+    from admittance.diagrams.robots.planar_arm import AddPlanarArm, SolvePlanarInverseKinematics
+    from admittance.diagrams.scenario.planar_arm import URDF_DIR
+    from admittance.systems.planar_kinematics import PlanarFrameKinematics
+
+    def apparent(payload_in_plant: float, allowance: float) -> float:
+        plant, _ = AddPlanarArm(
+            DiagramBuilder(),
+            URDF_DIR / "planar_arm.urdf",
+            reflected_inertia=reflected_inertia,
+            payload_mass=payload_in_plant,
+        )
+        q = SolvePlanarInverseKinematics(
+            plant, "fingertip", [0.2, -0.25, math.pi / 2], [-0.45, 1.66, 0.36]
+        )
+        kinematics = PlanarFrameKinematics(plant, "fingertip")
+        kinematics.set_state(np.concatenate([q, np.zeros(3)]))
+        jacobian = kinematics.jacobian()
+        return model.apparent_mass(
+            plant.CalcMassMatrix(kinematics.context),
+            jacobian[0],
+            payload_mass=allowance,
+            translational_jacobian=jacobian[:2],
+        )
+
+    bare = apparent(0.0, 0.0)
+    assert bare == pytest.approx(2.18 if reflected_inertia else 0.9217, abs=5e-3)
+    assert apparent(0.0, 0.5) == pytest.approx(apparent(0.5, 0.0), rel=1e-9)
+    assert apparent(0.0, 0.5) >= bare + 0.5

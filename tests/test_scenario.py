@@ -78,7 +78,7 @@ def test_force_reference_beyond_the_sensor_is_rejected():
         (
             "safety.bogus=1",
             "safety.bogus: unknown scenario key; safety has damping_ratio, enabled, "
-            "max_stiffness, stability_margin",
+            "max_stiffness, payload_mass, stability_margin",
         ),
     ],
 )

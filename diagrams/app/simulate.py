@@ -74,6 +74,11 @@ def summary(result: SimulationResult | GraspResult) -> str:
             f"{number(event['settling_time'], ' s')}, "
             f"peak after {number(event['peak_force_after'], ' N')}"
         )
+    if m.get("safety", {}).get("reach_limited"):
+        lines.append(
+            f"  safety: reach limited at {number(m['safety']['reach_limited_time'], ' s')}: "
+            "the force passed Fmax where the arm could not follow the layer's command"
+        )
     return "\n".join(lines)
 
 

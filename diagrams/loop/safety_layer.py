@@ -19,11 +19,13 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.systems.framework import Context, DiagramBuilder
 
+from admittance.diagrams.robots.planar_arm import ArmModel, SolvePlanarInverseKinematics
 from admittance.diagrams.scenario.planar_arm import Scenario
 from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.systems.contact_force_observer import ContactForceObserver
 from admittance.systems.fault_detector import FAULT_FLAGS, SensorFaultDetector
 from admittance.systems.flexiforce import FlexiForceSensor
+from admittance.systems.planar_kinematics import PlanarFrameKinematics
 from admittance.systems.safe_admittance import SafeAdmittance
 from admittance.systems.stiffness_estimator import StiffnessEstimator
 
@@ -34,6 +36,8 @@ __all__ = [
     "contact_force_threshold",
     "expected_noise",
     "fault_detection",
+    "first_contact_approach",
+    "reach_limit",
     "safety_columns",
     "safety_metrics",
 ]
@@ -113,7 +117,7 @@ class SafetyLayer:
             self.law.start_at_tip(self.law.GetMyMutableContextFromRoot(root_context))
         except ValueError as error:
             raise ScenarioError(
-                f"arm.initial_position, admittance.max_retract, admittance.max_push: {error} "
+                f"arm.initial_position, admittance.max_push: {error} "
                 "(with safety.enabled the reference starts at the tip)"
             ) from None
 
@@ -190,9 +194,13 @@ def AddSafetyLayer(
         )
     )
     detector.set_name("sensor_fault_detector")
+    # The law's model of the arm: the plant as built (reflected inertia included when the
+    # scenario has it), without a payload the simulated arm carries (arm.payload_mass):
+    # the layer knows of one only through safety.payload_mass.
+    model = plant if scenario.arm.payload_mass == 0.0 else ArmModel(scenario.arm)
     law = builder.AddSystem(
         SafeAdmittance(
-            plant,
+            model,
             frame_name=frame,
             gamma=admittance.gamma,
             alpha=admittance.alpha,
@@ -202,13 +210,13 @@ def AddSafetyLayer(
             max_force=admittance.max_force,
             force_bound_gain=admittance.force_bound_gain,
             max_push=admittance.max_push,
-            max_retract=admittance.max_retract,
             max_stiffness=safety.max_stiffness,
             damping_ratio=safety.damping_ratio,
             stability_margin=safety.stability_margin,
             filter_time_constant=filter_time_constant,
             contact_force=contact,
             detection_delay=detector.detection_delay,
+            payload_mass=safety.payload_mass,
             normal_axis=NORMAL_AXIS,
             num_axes=3,
         )
@@ -273,15 +281,63 @@ def safety_columns(logs: dict) -> dict[str, np.ndarray]:
     return columns
 
 
+def reach_limit(result, plant, effort_limits) -> float | None:
+    """The first time the force was above Fmax while the arm could not follow the layer's
+    command Xc = Xd + Xr: an actuator at its effort limit, or Xc out of the arm's reach
+    (no inverse kinematics from the logged joints). None if there is no such time.
+
+    The layer bounds neither how far Xr retracts nor the command's retreat (docs/safety.md):
+    past Fmax only the arm itself can have stopped it, and this says when.
+    """
+    scenario = result.scenario
+    over = np.nonzero(result.force > scenario.admittance.max_force)[0]
+    limits = np.asarray(effort_limits, dtype=float)
+    command = result.desired_position + result.reference_offset
+    for row in over:
+        if np.any(np.abs(result.actuation[row]) >= limits * (1.0 - 1e-9)):
+            return float(result.time[row])
+        try:
+            SolvePlanarInverseKinematics(
+                plant, scenario.arm.fingertip_frame, command[row], result.joint_positions[row]
+            )
+        except ValueError:
+            return float(result.time[row])
+    return None
+
+
+def first_contact_approach(result, law: SafeAdmittance) -> dict:
+    """The tip's speed along the normal at the last sample before the first contact (the
+    true force still zero), and the approach bound v_max the layer derives at that state.
+    Empty if the run never touches the wall."""
+    touching = np.nonzero(result.force > 0.0)[0]
+    if touching.size == 0 or touching[0] == 0:
+        return {}
+    row = touching[0] - 1
+    state = np.concatenate([result.joint_positions[row], result.joint_velocities[row]])
+    numbers = law.numbers_at(state, result.scenario.force_reference)
+    kinematics = PlanarFrameKinematics(law.plant, result.scenario.arm.fingertip_frame)
+    kinematics.set_state(state)
+    speed = float(kinematics.jacobian()[NORMAL_AXIS] @ result.joint_velocities[row])
+    return {
+        "first_contact_speed": speed,
+        "first_contact_approach_bound": float(numbers["approach_speed"]),
+        "first_contact_apparent_mass": float(numbers["apparent_mass"]),
+    }
+
+
 def safety_metrics(result) -> dict:
     """metrics.json's ``safety`` section: the layer's numbers at the start, each
-    detection (time, kind), and the final stiffness estimate and gain scale."""
+    detection (time, kind), the final stiffness estimate and gain scale, and whether the
+    arm's reach stopped the layer (``reach_limited``, ``reach_limited_time``)."""
     logs = result.safety
     time = logs["time"]
     metrics = {key: value for key, value in logs["numbers"].items() if key != "in_contact"}
     metrics["detections"] = _rising_edges(time, logs["fault_flags"])
     metrics["final_stiffness_estimate"] = float(logs["stiffness_estimate"][-1, 0])
     metrics["final_gain_scale"] = float(logs["gain_scale"][-1, 0])
+    metrics.update(logs.get("first_contact", {}))
+    metrics["reach_limited_time"] = logs.get("reach_limited_time")
+    metrics["reach_limited"] = metrics["reach_limited_time"] is not None
     return metrics
 
 

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
+from pydrake.multibody.tree import SpatialInertia, UnitInertia
 from pydrake.systems.framework import DiagramBuilder
 
 from admittance.diagrams.robots.description import ForceLaw, ForcePoint, SensorChain
@@ -22,6 +23,7 @@ __all__ = [
     "WALL_NORMAL_AXIS",
     "AddPlanarArm",
     "AddScenarioArm",
+    "ArmModel",
     "SolvePlanarInverseKinematics",
     "baseline_gains",
     "fingertip_point",
@@ -38,6 +40,7 @@ def AddPlanarArm(
     *,
     fingertip_frame: str = "fingertip",
     reflected_inertia: bool = False,
+    payload_mass: float = 0.0,
 ):
     """Adds the arm of the URDF file `urdf` as a continuous MultibodyPlant, gravity along -y.
 
@@ -46,6 +49,8 @@ def AddPlanarArm(
         fingertip_frame: the frame at the contact point, which the URDF must have.
         reflected_inertia: keep the motors' reflected inertia (``drake:rotor_inertia`` and
             ``drake:gear_ratio``); False zeroes it, the paper's rigid-body model.
+        payload_mass: a point mass welded at the fingertip frame, kg (0 = none): a tool or
+            a grasped part the URDF does not carry.
 
     Returns:
         (plant, scene_graph), the plant finalized.
@@ -56,15 +61,34 @@ def AddPlanarArm(
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
     plant.set_name("plant")
     scene_graph.set_name("scene_graph")
-    Parser(plant).AddModels(str(urdf))
+    _load_arm(plant, urdf, fingertip_frame, reflected_inertia, payload_mass)
+    return plant, scene_graph
+
+
+def _load_arm(plant, urdf, fingertip_frame: str, reflected_inertia: bool, payload_mass: float):
+    (model,) = Parser(plant).AddModels(str(urdf))
     plant.mutable_gravity_field().set_gravity_vector(GRAVITY_W)
     if not reflected_inertia:
         for index in plant.GetJointActuatorIndices():
             plant.get_mutable_joint_actuator(index).set_default_rotor_inertia(0.0)
-    plant.Finalize()
     if not plant.HasFrameNamed(fingertip_frame):
         raise ScenarioError(f"arm.fingertip_frame: the URDF has no frame named '{fingertip_frame}'")
-    return plant, scene_graph
+    if payload_mass > 0.0:
+        payload = plant.AddRigidBody(
+            "payload",
+            model,
+            SpatialInertia(payload_mass, np.zeros(3), UnitInertia(0.0, 0.0, 0.0)),
+        )
+        plant.WeldFrames(plant.GetFrameByName(fingertip_frame), payload.body_frame())
+    plant.Finalize()
+
+
+def ArmModel(arm: ArmConfig) -> MultibodyPlant:
+    """The arm as its URDF describes it (reflected inertia per `arm`), without the payload
+    of ``arm.payload_mass``: a plant of its own, in no diagram, for a controller's model."""
+    plant = MultibodyPlant(time_step=0.0)
+    _load_arm(plant, arm.urdf_path(), arm.fingertip_frame, arm.reflected_inertia, 0.0)
+    return plant
 
 
 def AddScenarioArm(builder: DiagramBuilder, arm: ArmConfig):
@@ -74,6 +98,7 @@ def AddScenarioArm(builder: DiagramBuilder, arm: ArmConfig):
         arm.urdf_path(),
         fingertip_frame=arm.fingertip_frame,
         reflected_inertia=arm.reflected_inertia,
+        payload_mass=arm.payload_mass,
     )
 
 

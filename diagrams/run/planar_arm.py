@@ -14,6 +14,8 @@ from admittance.diagrams.loop.safety_layer import (
     CapStepForSampledMonitor,
     SafetyLayer,
     fault_detection,
+    first_contact_approach,
+    reach_limit,
     safety_columns,
     safety_metrics,
 )
@@ -129,6 +131,8 @@ def compute_metrics(result: SimulationResult) -> dict:
     metrics["first_contact_transient_end"] = None
     metrics["peak_force_after_first_contact_transient"] = None
     if first_contact is None:
+        # A run that never touches: the layer's section still says what it was held to.
+        _add_safety_metrics(metrics, result)
         return metrics
 
     # The first contact transient (an impact, or the pre-load of a plan behind the wall)
@@ -214,11 +218,7 @@ def compute_metrics(result: SimulationResult) -> dict:
         if result.safety is not None:
             detections = safety_metrics(result)["detections"]
             metrics["faults"][-1].update(fault_detection(detections, fault.start, fault.end))
-    if result.safety is not None:
-        metrics["safety"] = safety_metrics(result)
-        # Scalars for the sweep's table (it keeps the top-level scalars).
-        metrics["safety_detections"] = len(metrics["safety"]["detections"])
-        metrics["safety_final_stiffness_estimate"] = metrics["safety"]["final_stiffness_estimate"]
+    _add_safety_metrics(metrics, result)
     if scenario.wall.velocity != 0.0:
         moving = window_mask(
             time, scenario.wall.motion_start, min(scenario.wall.motion_end, duration)
@@ -227,6 +227,17 @@ def compute_metrics(result: SimulationResult) -> dict:
             metrics["force_min_while_wall_moves"] = float(np.min(force[moving]))
             metrics["force_max_while_wall_moves"] = float(np.max(force[moving]))
     return metrics
+
+
+def _add_safety_metrics(metrics: dict, result: SimulationResult) -> None:
+    """metrics.json's ``safety`` section and its scalars (safety.enabled only)."""
+    if result.safety is None:
+        return
+    metrics["safety"] = safety_metrics(result)
+    # Scalars for the sweep's table (it keeps the top-level scalars).
+    metrics["safety_detections"] = len(metrics["safety"]["detections"])
+    metrics["safety_final_stiffness_estimate"] = metrics["safety"]["final_stiffness_estimate"]
+    metrics["safety_reach_limited"] = metrics["safety"]["reach_limited"]
 
 
 def settling_columns(metrics: dict) -> dict[str, float | None]:
@@ -330,5 +341,9 @@ def _collect(
         result.safety = {"time": sample_times, "numbers": safety_numbers}
         for name in loop.admittance.log_ports():
             result.safety[name] = _log_data(loop, context, name)[1]
+        result.safety["first_contact"] = first_contact_approach(result, loop.admittance.law)
+        result.safety["reach_limited_time"] = reach_limit(
+            result, loop.plant, loop.pid.effort_limits
+        )
     result.metrics = compute_metrics(result)
     return result

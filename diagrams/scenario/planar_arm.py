@@ -167,6 +167,10 @@ class ArmConfig:
     # Include the motors' reflected inertia (rotor inertia x gear ratio^2) from the URDF.
     # false reproduces the paper's rigid-body model.
     reflected_inertia: bool = False
+    # A point mass welded at the fingertip frame, kg: a tool or a grasped part the URDF does
+    # not carry. The simulated arm has it; the safety layer's model of the arm does not
+    # (safety.payload_mass is what the layer is told).
+    payload_mass: float = 0.0
     # Joint-space seed that picks the elbow branch of the initial inverse kinematics, rad.
     joint_guess: list[float] = field(default_factory=lambda: [-0.45, 1.66, 0.36])
     # Initial fingertip pose (x m, y m, theta rad); empty = Xd(0). The arm starts at rest.

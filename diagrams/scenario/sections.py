@@ -95,6 +95,9 @@ class SafetyConfig:
     stability_margin: float = 3.0
     # Damping ratio of the contact mode at max_stiffness (a first contact bounces below 0.19).
     damping_ratio: float = 0.25
+    # An unmodelled payload or tool at the fingertip, kg: the layer adds it to the arm's
+    # mass matrix as a point mass there (the approach speed and the damping follow).
+    payload_mass: float = 0.0
 
 
 FAULT_KINDS = (

@@ -126,6 +126,9 @@ RANGES: dict[str, Range] = {
     "safety.stability_margin": Range("[1, 100]"),
     # A first contact bounces below 0.19 (systems/contact_model.py).
     "safety.damping_ratio": Range("[0.2, 2]", "(a first contact bounces below 0.19)"),
+    # A point mass at the fingertip that the URDF does not carry (a tool, a grasped part).
+    "safety.payload_mass": Range("[0, 10]", "kg"),
+    "arm.payload_mass": Range("[0, 10]", "kg"),
 }
 
 # The PID's gains, each axis.
