@@ -19,10 +19,14 @@ def BuildLoop(scenario, *, analysis: bool = False) -> ClosedLoop | GraspLoop:
     """The loop of Fig. 1 for `scenario` (a validated scenario of any kind).
 
     Args:
-        analysis: build for Linearize (no random source, no loggers; see each robot's
-            builder). The gripper's loop has no analysis variant of its own: its analysis
-            builds it with time_step = 0.
+        analysis: build for Linearize (no random source, no loggers; see the arm's
+            builder). The gripper's loop has none: its analysis linearizes the sampled loop
+            as it runs (analysis.planar_gripper), so asking for one is an error.
     """
     if isinstance(scenario, GraspScenario):
+        if analysis:
+            raise ValueError(
+                "analysis: the gripper's loop is analysed as it runs (analysis.planar_gripper)"
+            )
         return BuildGrasp(scenario)
     return BuildClosedLoop(scenario, analysis=analysis)
