@@ -206,3 +206,28 @@ def test_no_public_name_of_a_package_hides_one_of_its_modules():
         for module in pkgutil.iter_modules(package.__path__):
             loaded = importlib.import_module(f"{package.__name__}.{module.name}")
             assert getattr(package, module.name) is loaded, (name, module.name)
+
+
+def test_every_public_function_and_class_of_the_library_is_exported():
+    """What a library module defines without a leading underscore is in its __all__, so
+    that its package re-exports it (`from admittance.diagrams.run import settled_from`)."""
+    import importlib
+    import inspect
+    import pkgutil
+
+    unexported = {}
+    for name in (p for p in CONCEPTS if p != "app"):
+        package = importlib.import_module(f"admittance.diagrams.{name}")
+        for info in pkgutil.iter_modules(package.__path__):
+            module = importlib.import_module(f"{package.__name__}.{info.name}")
+            defined = {
+                n
+                for n, v in vars(module).items()
+                if not n.startswith("_")
+                and (inspect.isfunction(v) or inspect.isclass(v))
+                and v.__module__ == module.__name__
+            }
+            missing = defined - set(getattr(module, "__all__", ()))
+            if missing:
+                unexported[module.__name__] = sorted(missing)
+    assert unexported == {}

@@ -50,6 +50,7 @@ from admittance.diagrams.scenario.validation import validate
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
 __all__ = [
+    "StepResponse",
     "critical_gain",
     "critical_gamma",
     "linear_versus_nonlinear",

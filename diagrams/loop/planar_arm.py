@@ -61,6 +61,7 @@ from admittance.systems.planar_kinematics import PlanarFrameKinematics, PlanarKi
 __all__ = [
     "BuildClosedLoop",
     "CheckScenarioStarts",
+    "CheckTrajectoryReachable",
     "ClosedLoop",
     "SetInitialConditions",
 ]

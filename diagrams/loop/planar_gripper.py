@@ -61,6 +61,7 @@ from admittance.systems.planar_kinematics import PlanarKinematics
 
 __all__ = [
     "BuildGrasp",
+    "FingerLoop",
     "GraspLoop",
     "SetGraspInitialConditions",
 ]

@@ -10,6 +10,24 @@ import math
 
 import numpy as np
 
+__all__ = [
+    "CONTACT_FRACTION",
+    "SETTLE_AVERAGE_SAMPLES",
+    "SETTLE_BAND",
+    "STEADY_WINDOW",
+    "contact_loss_indices",
+    "final_window",
+    "first_contact_time",
+    "in_contact",
+    "least_squares_slope",
+    "settled_from",
+    "settling_time",
+    "time_mean",
+    "trailing_average",
+    "until_mask",
+    "window_mask",
+]
+
 # Window over which "steady state" and "before an event" errors are averaged, s.
 STEADY_WINDOW = 1.0
 # Band around Fr that counts as settled (relative).

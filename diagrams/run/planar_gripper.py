@@ -53,6 +53,7 @@ __all__ = [
     "DROP_LIMIT",
     "GraspResult",
     "compute_grasp_metrics",
+    "grasp_verdict_line",
     "run_grasp",
 ]
 

@@ -6,6 +6,8 @@ from __future__ import annotations
 import difflib
 from collections.abc import Iterable
 
+__all__ = ["unknown_key_hint"]
+
 
 def unknown_key_hint(key: str, valid: Iterable[str]) -> str:
     """'; did you mean ...?', '; SECTION has A, B, ...' or '' for `key`, among the dotted

@@ -44,8 +44,17 @@ __all__ = [
     "FINGERS",
     "GRASP_CONTROLLER_KINDS",
     "GRASP_DISTURBANCE_KINDS",
+    "GraspAdmittanceConfig",
+    "GraspBrickConfig",
+    "GraspContactConfig",
+    "GraspControllerConfig",
+    "GraspDisturbanceConfig",
+    "GraspPidConfig",
+    "GraspPlanConfig",
     "GraspScenario",
+    "GraspSensorConfig",
     "load_grasp_scenario",
+    "validate_grasp",
 ]
 
 #: The fingers of Drake's planar gripper, in the order of every per-finger list.

@@ -22,7 +22,17 @@ from pydrake.common.yaml import yaml_load, yaml_load_typed
 from admittance.diagrams.scenario.key_hints import unknown_key_hint
 
 __all__ = [
+    "INTEGRATION_SCHEMES",
     "ScenarioError",
+    "check_tree",
+    "coerce_numbers",
+    "load_typed",
+    "parse_overrides",
+    "parse_value",
+    "scenario_keys",
+    "set_dotted",
+    "to_yaml_text",
+    "unknown_key_error",
 ]
 
 

@@ -22,7 +22,18 @@ from admittance.diagrams.scenario.planar_arm import CONTROLLER_KINDS, Scenario
 from admittance.diagrams.scenario.schema import INTEGRATION_SCHEMES, ScenarioError
 from admittance.diagrams.scenario.sections import FAULT_KINDS
 
-__all__ = ["MAX_SEED", "MAX_STIFFNESS", "PID_GAINS", "RANGES", "Range", "validate"]
+__all__ = [
+    "MAX_SEED",
+    "MAX_STIFFNESS",
+    "PID_GAINS",
+    "RANGES",
+    "Range",
+    "require",
+    "require_one_of",
+    "require_range",
+    "validate",
+    "value_of",
+]
 
 # Stiffer than any contact this arm can make (steel on steel at this scale is ~1e9 N/m).
 MAX_STIFFNESS = 1e9

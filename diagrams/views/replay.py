@@ -42,6 +42,14 @@ from admittance.diagrams.robots.planar_arm import AddScenarioArm
 from admittance.diagrams.run.planar_arm import SimulationResult
 
 __all__ = [
+    "ForceArrow",
+    "Replay",
+    "arrow_scale",
+    "frame_times",
+    "interpolate",
+    "staging_path",
+    "view_bounds",
+    "write_atomically",
     "write_meshcat_replay",
 ]
 
