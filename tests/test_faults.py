@@ -94,12 +94,49 @@ def test_sensor_fault_readings_overlaps_and_checks():
             context.SetTime(time)
             reported = system.reported_force_output.Eval(context)[0]
             assert (reported if system is fault else reported.value()) == expected, time
-    assert fault.active_fault(2.5) == faults[0] and fault.active_fault(5.0) is None
+    assert fault.active_fault(2.5)[:4] == faults[0] and fault.active_fault(5.0) is None
     with pytest.raises(ValueError, match="fault kind must be one of"):
         SensorFault([("sensor_fire", 1.0, 2.0, 0.0)])
     for start, end in ((2.0, 2.0), (2.0, 1.0), (math.nan, 2.0)):
         with pytest.raises(ValueError, match="must be after start"):
             SensorFault([("sensor_zero", start, end, 0.0)])
+
+
+def test_a_noisy_fault_keeps_the_noise_sample_on_the_replaced_reading():
+    """By hand: a noisy dropout reads 0 + the noise sample, a noisy stuck reading its value
+    + the sample; a noise-free fault has no noise input at all."""
+    fault = SensorFault(
+        [("sensor_zero", 1.0, 2.0, 0.0, True), ("sensor_stuck", 2.0, 3.0, 4.0, True)]
+    )
+    context = fault.CreateDefaultContext()
+    fault.measured_force_input.FixValue(context, [7.0])
+    fault.noise_input.FixValue(context, [-0.03])
+    for time, expected in ((0.5, 7.0), (1.5, -0.03), (2.5, 3.97), (3.5, 7.0)):
+        context.SetTime(time)
+        assert fault.reported_force_output.Eval(context)[0] == pytest.approx(expected, abs=1e-15)
+    assert SensorFault([("sensor_zero", 1.0, 2.0, 0.0)]).noise_input is None
+    with pytest.raises(ValueError, match="no noise to keep"):
+        SensorFault([("sensor_nan", 1.0, 2.0, 0.0, True)])
+
+
+def test_a_noisy_dropout_in_a_run_shows_the_sensors_noise():
+    """paper_moving_wall's FlexiForce (noise std 0.02 N, one sample every 5 ms): during a
+    noisy dropout the reading scatters about 0 N with that std; a plain one reads 0 N.
+    Over 0.4 s, 80 samples: the std of a sample std is 1/sqrt(2 x 80) = 8 % of it, so
+    +-30 % is more than 3 of those."""
+    readings = {}
+    for noisy in (False, True):
+        fault = f"{{kind: sensor_zero, start: 0.3, end: 0.7, noisy: {str(noisy).lower()}}}"
+        scenario = load_scenario(
+            "paper_moving_wall", ["duration=0.8", "logging.period=0.005", f"faults=[{fault}]"]
+        )
+        result = run_scenario(scenario)
+        during = (result.time >= 0.3 + 1e-9) & (result.time < 0.7 - 1e-9)
+        readings[noisy] = result.force_measured[during]
+    assert np.all(readings[False] == 0.0)
+    noise_std = load_scenario("paper_moving_wall").sensor.noise_std
+    assert abs(np.mean(readings[True])) < 4 * noise_std / math.sqrt(readings[True].size)
+    assert np.std(readings[True]) == pytest.approx(noise_std, rel=0.3)
 
 
 def test_admittance_holds_its_reference_on_an_invalid_measurement():

@@ -111,11 +111,15 @@ def AddSensorChain(
         gain = builder.AddSystem(Gain(chain.noise_std, 1))
         gain.set_name(point.system_name("noise_std"))
         builder.Connect(source.get_output_port(0), gain.get_input_port())
-        builder.Connect(gain.get_output_port(), system.noise_input)
+        noise_output = gain.get_output_port()
     else:
         zero = builder.AddSystem(ConstantVectorSource([0.0]))
         zero.set_name(point.system_name("no_noise"))
-        builder.Connect(zero.get_output_port(), system.noise_input)
+        noise_output = zero.get_output_port()
+    builder.Connect(noise_output, system.noise_input)
+    if chain.faults and fault.noise_input is not None:
+        # A noisy fault keeps the same ADC noise the reading had.
+        builder.Connect(noise_output, fault.noise_input)
     return SensorReading(system, measured_force_output, random_sources)
 
 

@@ -37,8 +37,8 @@ class SensorChain:
     noise_period: float = 0.005
     # Readout period of the sensor, s (0 = a continuous output).
     period: float = 0.0
-    # Injected sensor faults, (kind, start s, end s, value), kinds sensor_*.
-    faults: list[tuple[str, float, float, float]] = field(default_factory=list)
+    # Injected sensor faults, (kind, start s, end s, value, noisy), kinds sensor_*.
+    faults: list[tuple[str, float, float, float, bool]] = field(default_factory=list)
 
 
 @dataclass

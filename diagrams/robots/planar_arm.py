@@ -187,7 +187,7 @@ def fingertip_point(scenario: Scenario) -> ForcePoint:
             noise_std=scenario.sensor.noise_std,
             noise_period=scenario.sensor.noise_period,
             faults=[
-                (f.kind, f.start, f.end, f.value)
+                (f.kind, f.start, f.end, f.value, f.noisy)
                 for f in scenario.faults
                 if f.kind.startswith("sensor_")
             ],

@@ -25,6 +25,7 @@ __all__ = [
     "FAULT_KINDS_WITH_VALUE",
     "FaultConfig",
     "LoggingConfig",
+    "NOISY_FAULT_KINDS",
     "PidSection",
     "SafetyConfig",
     "SensorSection",
@@ -110,6 +111,10 @@ FAULT_KINDS = (
 )
 
 
+# The fault kinds that may keep the sensor's noise (`noisy`).
+NOISY_FAULT_KINDS = ("sensor_stuck", "sensor_zero", "sensor_saturated")
+
+
 # The fault kinds that read `value`.
 FAULT_KINDS_WITH_VALUE = ("sensor_stuck", "sensor_saturated", "wall_retract", "stiffness_jump")
 
@@ -125,6 +130,9 @@ class FaultConfig:
     # sensor_stuck and sensor_saturated: the reading (N); wall_retract: the jump (m);
     # stiffness_jump: Ke during the fault (N/m). Unused by sensor_nan and sensor_zero.
     value: float = 0.0
+    # sensor_stuck, sensor_zero and sensor_saturated: keep the sensor's noise on the replaced
+    # reading (a real dropout still shows the ADC's noise); false = a noise-free constant.
+    noisy: bool = False
 
     ENTRY_SUMMARY: ClassVar[str] = "{kind, start, end, value} mappings"
     MISSING_HINT: ClassVar[str] = (

@@ -20,7 +20,7 @@ from pydrake.multibody.plant import MultibodyPlant
 
 from admittance.diagrams.scenario.planar_arm import CONTROLLER_KINDS, Scenario
 from admittance.diagrams.scenario.schema import INTEGRATION_SCHEMES, ScenarioError
-from admittance.diagrams.scenario.sections import FAULT_KINDS
+from admittance.diagrams.scenario.sections import FAULT_KINDS, NOISY_FAULT_KINDS
 
 __all__ = [
     "MAX_SEED",
@@ -229,6 +229,20 @@ def _check_entries(s: Scenario) -> None:
             require(fault.value > 0, key + ".value", "> 0 m (the wall moves away, +x)", fault.value)
         if fault.kind == "sensor_saturated":
             require(fault.value > 0, key + ".value", "> 0 N (the full-scale reading)", fault.value)
+        if fault.noisy:
+            require(
+                fault.kind in NOISY_FAULT_KINDS,
+                key + ".noisy",
+                f"false for {fault.kind} (only {', '.join(NOISY_FAULT_KINDS)} keep the noise)",
+                fault.noisy,
+            )
+            require(
+                s.sensor.kind == "flexiforce" and s.sensor.noise_std > 0,
+                key + ".noisy",
+                "false unless sensor.kind is flexiforce with sensor.noise_std > 0 (no noise to "
+                "keep)",
+                fault.noisy,
+            )
 
 
 def _check_choices(s: Scenario) -> None:
