@@ -32,7 +32,8 @@ and a torque on a link shows in it. Evidence: |r_perp| > |j| F_tol, the norm of 
 that a fingertip force error at the plausibility check's base tolerance F_tol makes
 (docs/safety.md, "The collision reflex", derives it). While there is evidence of a
 collision, or once one is flagged, the plausibility check takes no evidence (F_hat then
-carries the collision's torque, not the contact force). ``sensor_fault`` ignores it; the
+carries the collision's torque, not the contact force), and once one is flagged the stuck
+check's contact is the reading's alone. ``sensor_fault`` ignores it; the
 ``collision`` output is its flag. Without a value on the ``external_torque`` input there
 is no collision check.
 
@@ -330,7 +331,10 @@ def SensorFaultDetector_(T):
             else:
                 unchanged = change < UNCHANGED_FORCE
                 stuck_evidence = False
-            in_contact = reading >= self._contact_force or observed >= self._contact_force
+            collided = state[_COLLISION_FLAG] > 0.5  # F_hat then carries the collision's torque
+            in_contact = reading >= self._contact_force or (
+                observed >= self._contact_force and not collided
+            )
             if unchanged and in_contact:
                 stuck_evidence = stuck_evidence or (
                     predicted_rate * self._period > self._force_tolerance
@@ -351,7 +355,7 @@ def SensorFaultDetector_(T):
             else:
                 state[_COLLISION] = 0
             if collision_evidence or state[_COLLISION_FLAG] > 0.5:
-                implausible_evidence = False  # F_hat carries the collision's torque
+                implausible_evidence = False
             for evidence, count, clear, flag, needed in (
                 (stuck_evidence, _STUCK, _CLEAR_STUCK, _STUCK_FLAG, STUCK_SAMPLES),
                 (
