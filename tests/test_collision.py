@@ -6,7 +6,8 @@ contact sensor does not explain is a collision, not a sensor fault, and the arm 
   orthogonal to j is not, and a torque on one joint leaves sqrt(1 - j_i^2 / |j|^2) of
   itself unexplained;
 * the detector sample by sample: a collision is flagged after three samples and never as
-  a sensor fault; a sensor at zero with the arm's torques consistent is still implausible;
+  a sensor fault; a sensor at zero with the arm's torques consistent is still implausible,
+  and in closed loop a reading at zero or stuck is still implausible, no collision;
 * the joint_torque fault's torque on the plant, and its keys' checks;
 * in closed loop (the moving-wall arm on a static 1e5 N/m wall, the ideal sensor, the
   layer on): 2 N m on the elbow is a collision, detected within the delay derived from
@@ -267,3 +268,25 @@ def test_a_torque_on_the_elbow_is_a_collision_and_the_arm_stops_under_fmax(
     late = result.time >= START + 0.2
     assert np.max(result.force[late]) < 1.05 * 0.5
     assert fault["peak_joint_torque_after_collision"] < 30.0  # the shoulder's effort limit
+
+
+@pytest.mark.parametrize("kind", ["sensor_zero", "sensor_stuck"])
+def test_a_sensor_fault_in_closed_loop_is_still_that_sensor_fault_and_no_collision(kind):
+    """The stiffness-step arm pressing 5 N, the ideal sensor: a reading at 0 N or stuck at
+    4 N from 0.6 to 0.8 s is flagged implausible (the arm's torques agree with the wall's
+    force, not with the reading), and nothing is taken for a collision (1.3 s each)."""
+    result = run_scenario(
+        load_scenario(
+            "paper_stiffness_step",
+            [
+                "duration=1.2",
+                "wall.stiffness_steps=[]",
+                "sensor.kind=ideal",
+                "admittance.max_force=10",
+                f"faults=[{{kind: {kind}, start: 0.6, end: 0.8, value: 4.0}}]",
+                "safety.enabled=true",
+            ],
+        )
+    )
+    assert [d["kind"] for d in result.metrics["safety"]["detections"]] == ["implausible"]
+    assert result.metrics["faults"][0]["detected_kind"] == "implausible"
