@@ -15,7 +15,9 @@ tau_ext = J^T (-F, 0, 0) and the estimate of the compressive contact force is
 
 C^T v is left out: at the fingertip speeds of this arm (below 0.1 m/s, links of 0.2 m)
 it is below 1e-3 N m. The fault detector compares the sensor's reading with F_hat
-(systems/fault_detector.py).
+(systems/fault_detector.py), and r itself with what a force along the normal can explain:
+r off the direction J_x^T is a collision on a link (docs/safety.md, "The collision
+reflex"); the output `external_torque` is r.
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ def ContactForceObserver_(T):
     class Impl(LeafSystem_[T]):
         """Momentum observer of the contact force along the wall normal (module docstring).
 
-        State: p_I (nv). Output: F_hat, N (compressive positive). The output is an
+        State: p_I (nv). Outputs: F_hat, N (compressive positive), and r, N m. F_hat is an
         estimate for monitoring: for AutoDiffXd it carries the value only.
 
         .. pydrake_system::
@@ -48,6 +50,7 @@ def ContactForceObserver_(T):
             - actuation
             output_ports:
             - contact_force
+            - external_torque
         """
 
         def _construct(
@@ -86,6 +89,12 @@ def ContactForceObserver_(T):
                 "contact_force",
                 1,
                 self._CalcContactForce,
+                prerequisites_of_calc={self.xc_ticket(), self.estimated_state_input.ticket()},
+            )
+            self.external_torque_output = self.DeclareVectorOutputPort(
+                "external_torque",
+                nv,
+                lambda context, output: output.SetFromVector(self._residual(context)),
                 prerequisites_of_calc={self.xc_ticket(), self.estimated_state_input.ticket()},
             )
 

@@ -20,6 +20,23 @@ Four kinds of fault, each one flag of ``fault_flags``:
   (seen in the reading itself, or predicted from the tip's speed and the stiffness
   estimate).
 
+A fifth flag, ``collision`` (after N_c = 3 samples, latched to the end of the run), is not
+a sensor fault: the observer's residual r (the external joint torque, N m) has a part that
+no fingertip force along the normal can produce. Such a force gives r = -F j, j = J_x^T
+(the normal row of the fingertip's Jacobian), whatever the reading says; so
+
+    r_perp = r - j (j . r) / (j . j)
+
+is zero for any contact force and any sensor fault (a fault changes the reading, never r),
+and a torque on a link shows in it. Evidence: |r_perp| > |j| F_tol, the norm of the torque
+that a fingertip force error at the plausibility check's base tolerance F_tol makes
+(docs/safety.md, "The collision reflex", derives it). While there is evidence of a
+collision, or once one is flagged, the plausibility check takes no evidence (F_hat then
+carries the collision's torque, not the contact force), and once one is flagged the stuck
+check's contact is the reading's alone. ``sensor_fault`` ignores it; the
+``collision`` output is its flag. Without a value on the ``external_torque`` input there
+is no collision check.
+
 A detected stuck or implausible reading stays flagged until N_r = 4 samples in a row show
 no evidence of it. The held value is the reading of the sample before the first sample of
 evidence, so a fault caught after N samples leaves no trace in it. The ``sensor_fault``
@@ -41,7 +58,13 @@ from pydrake.systems.scalar_conversion import TemplateSystem
 
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
-__all__ = ["FAULT_FLAGS", "SensorFaultDetector", "SensorFaultDetector_"]
+__all__ = [
+    "FAULT_FLAGS",
+    "SensorFaultDetector",
+    "SensorFaultDetector_",
+    "collision_tolerance",
+    "unexplained_torque",
+]
 
 #: The kinds of fault, in the order of the ``fault_flags`` output.
 FAULT_FLAGS = ("nonfinite", "saturated", "stuck", "implausible")
@@ -50,6 +73,7 @@ FAULT_FLAGS = ("nonfinite", "saturated", "stuck", "implausible")
 # evidence before the flag clears.
 STUCK_SAMPLES = 3
 IMPLAUSIBLE_SAMPLES = 3
+COLLISION_SAMPLES = 3
 CLEAR_SAMPLES = 4
 # A reading at or above this share of full scale is saturated.
 SATURATED_SHARE = 0.98
@@ -61,11 +85,27 @@ UNCHANGED_FORCE = 1e-9
 # Discrete state layout.
 _PREVIOUS, _STUCK, _IMPLAUSIBLE, _CLEAR_STUCK, _CLEAR_IMPLAUSIBLE = 0, 1, 2, 3, 4
 _STUCK_FLAG, _IMPLAUSIBLE_FLAG, _HELD = 5, 6, 7
-_STATE_SIZE = 8
+_COLLISION, _COLLISION_FLAG = 8, 9
+_STATE_SIZE = 10
 
 
 def _value(x) -> float:
     return float(x) if isinstance(x, float | int) else float(x.value())
+
+
+def unexplained_torque(residual, normal_row) -> float:
+    """|r_perp|, N m: the norm of the part of the external joint torque r that no force at
+    the fingertip along the normal explains (r minus its projection on j = J_x^T)."""
+    residual = np.asarray(residual, dtype=float)
+    direction = np.asarray(normal_row, dtype=float)
+    explained = direction * (direction @ residual) / (direction @ direction)
+    return float(np.linalg.norm(residual - explained))
+
+
+def collision_tolerance(normal_row, force_tolerance: float) -> float:
+    """|j| F_tol, N m: the largest joint torque a fingertip force within the plausibility
+    check's base tolerance makes; |r_perp| beyond it is evidence of a collision."""
+    return float(np.linalg.norm(np.asarray(normal_row, dtype=float))) * force_tolerance
 
 
 @TemplateSystem.define("SensorFaultDetector_", T_list=[float, AutoDiffXd])
@@ -84,10 +124,12 @@ def SensorFaultDetector_(T):
             - observed_force
             - stiffness_estimate
             - estimated_state
+            - external_torque
             output_ports:
             - trusted_force
             - sensor_fault
             - fault_flags
+            - collision
         """
 
         def _construct(
@@ -157,6 +199,9 @@ def SensorFaultDetector_(T):
             self.observed_force_input = self.DeclareVectorInputPort("observed_force", 1)
             self.stiffness_estimate_input = self.DeclareVectorInputPort("stiffness_estimate", 1)
             self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", nx)
+            self.external_torque_input = self.DeclareVectorInputPort(
+                "external_torque", plant.num_velocities()
+            )
             reading = {self.measured_force_input.ticket()}
             if not self._frozen:
                 initial = np.zeros(_STATE_SIZE)
@@ -184,6 +229,12 @@ def SensorFaultDetector_(T):
             )
             self.fault_flags_output = self.DeclareVectorOutputPort(
                 "fault_flags", len(FAULT_FLAGS), self._CalcFlags, prerequisites_of_calc=flags
+            )
+            self.collision_output = self.DeclareVectorOutputPort(
+                "collision",
+                1,
+                self._CalcCollision,
+                prerequisites_of_calc={self.nothing_ticket() if self._frozen else self.xd_ticket()},
             )
 
         def _construct_copy(self, other, converter=None) -> None:
@@ -234,6 +285,13 @@ def SensorFaultDetector_(T):
         def _CalcFault(self, context, output) -> None:
             output.SetFromVector([T(float(any(self._flags_cache.Eval(context))))])
 
+        def _CalcCollision(self, context, output) -> None:
+            if self._frozen:
+                output.SetFromVector([T(0.0)])
+                return
+            state = context.get_discrete_state(self._state_index).CopyToVector()
+            output.SetFromVector([T(float(_value(state[_COLLISION_FLAG]) > 0.5))])
+
         def _CalcTrusted(self, context, output) -> None:
             reading = self.measured_force_input.Eval(context)[0]
             if self._frozen or not any(self._flags_cache.Eval(context)):
@@ -273,13 +331,31 @@ def SensorFaultDetector_(T):
             else:
                 unchanged = change < UNCHANGED_FORCE
                 stuck_evidence = False
-            in_contact = reading >= self._contact_force or observed >= self._contact_force
+            collided = state[_COLLISION_FLAG] > 0.5  # F_hat then carries the collision's torque
+            in_contact = reading >= self._contact_force or (
+                observed >= self._contact_force and not collided
+            )
             if unchanged and in_contact:
                 stuck_evidence = stuck_evidence or (
                     predicted_rate * self._period > self._force_tolerance
                 )
             allowance = (change / self._period + predicted_rate) / self._observer_gain
             implausible_evidence = abs(reading - observed) > self._force_tolerance + allowance
+            collision_evidence = False
+            if self.external_torque_input.HasValue(context):
+                residual = [_value(x) for x in self.external_torque_input.Eval(context)]
+                normal_row = jacobian[self._normal_axis]
+                collision_evidence = unexplained_torque(residual, normal_row) > (
+                    collision_tolerance(normal_row, self._force_tolerance)
+                )
+            if collision_evidence:
+                state[_COLLISION] += 1
+                if state[_COLLISION] >= COLLISION_SAMPLES:
+                    state[_COLLISION_FLAG] = 1.0  # latched
+            else:
+                state[_COLLISION] = 0
+            if collision_evidence or state[_COLLISION_FLAG] > 0.5:
+                implausible_evidence = False
             for evidence, count, clear, flag, needed in (
                 (stuck_evidence, _STUCK, _CLEAR_STUCK, _STUCK_FLAG, STUCK_SAMPLES),
                 (

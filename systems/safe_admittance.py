@@ -70,6 +70,15 @@ paper's would.
 retracts). When the flag clears it returns at the rates above: v_adv in contact, v_max in
 free motion.
 
+**Collision reflex.** Once the detector flags a collision on a link (its ``collision``
+output, latched), the arm stops and backs off the wall: the plan's motion along the normal
+no longer moves the command (dy/dt loses dXd/dt), the law may only retract (E_u <= 0), and
+while the trusted force shows contact the command Xd + y moves away from the wall at
+v_max, then holds where the contact released. v_max is the speed whose impact on a wall of
+Ke_max peaks at Fmax: a retreat that strikes something as stiff stays under Fmax too. The
+PID keeps the arm at that command against the collision's torque; the damper c x' stays.
+Without a value on the ``collision`` input there is no reflex.
+
 Push bound: y + P is kept below max_push by back-calculation (time constant 10 ms, as in
 systems/optimal_admittance.py), without a hard clamp of the output: a clamp would tie the
 command to Xd and let it approach at the plan's speed. y + P passes max_push by at most
@@ -125,6 +134,7 @@ def SafeAdmittance_(T):
             - estimated_state
             - stiffness_estimate
             - sensor_fault
+            - collision
             output_ports:
             - reference_offset
             - gain_scale
@@ -243,6 +253,7 @@ def SafeAdmittance_(T):
             self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", nq + nv)
             self.stiffness_estimate_input = self.DeclareVectorInputPort("stiffness_estimate", 1)
             self.sensor_fault_input = self.DeclareVectorInputPort("sensor_fault", 1)
+            self.collision_input = self.DeclareVectorInputPort("collision", 1)
             self.DeclareContinuousState(BasicVector_[T]([0.0, 1.0]))
             self._law_cache = self.DeclareCacheEntry(
                 description="reference offset and state rates",
@@ -380,6 +391,10 @@ def SafeAdmittance_(T):
             reference = self.desired_force_input.Eval(context)[0]
             estimate = self.stiffness_estimate_input.Eval(context)[0]
             fault = _value(self.sensor_fault_input.Eval(context)[0]) > 0.5
+            collision = (
+                self.collision_input.HasValue(context)
+                and _value(self.collision_input.Eval(context)[0]) > 0.5
+            )
             # The tip's speed along the normal (carries derivatives: the injected damper).
             self._kinematics.set_state(state)
             jacobian = self._kinematics.jacobian()
@@ -396,6 +411,8 @@ def SafeAdmittance_(T):
             cap = numbers["advance_speed"] / _value(integral_gain)
             if _value(error) > cap:
                 error = T(cap)
+            if collision and _value(error) > 0.0:
+                error = T(0.0)  # the reflex: the law may only retract
             proportional = integral_gain * self._alpha * error
             rate = integral_gain * error - self._gamma * self._stiffness * scale_rate * (
                 self._alpha * error
@@ -415,6 +432,10 @@ def SafeAdmittance_(T):
                 rate = rate - desired_speed
             if fault and _value(rate) > min(0.0, -plan_speed):
                 rate = T(0.0) if plan_speed <= 0.0 else -desired_speed
+            if collision:
+                # Stop, and back off the wall at v_max while in contact.
+                retract = numbers["approach_speed"] if numbers["in_contact"] else 0.0
+                rate = -retract - desired_speed
             offset = (
                 law
                 - (numbers["injected_damping"] / self._kp) * speed

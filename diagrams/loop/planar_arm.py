@@ -56,6 +56,7 @@ from admittance.systems.cartesian_pid import CartesianPid
 from admittance.systems.compliant_wall import CompliantWall
 from admittance.systems.desired_trajectory import DesiredTrajectory
 from admittance.systems.flexiforce import FlexiForceSensor
+from admittance.systems.joint_torque_fault import JointTorqueFault
 from admittance.systems.planar_kinematics import PlanarFrameKinematics, PlanarKinematics
 
 __all__ = [
@@ -126,7 +127,8 @@ def _AddWall(
     wall: WallConfig,
     faults: list[FaultConfig],
 ) -> CompliantWall:
-    """The wall of eq. 4, pushing on the fingertip; with its faults (a retract, a jump of Ke)."""
+    """The wall of eq. 4, pushing on the fingertip; with its faults (a retract, a jump of Ke),
+    and the joint_torque faults' torques summed with its generalized force."""
     system = builder.AddSystem(
         CompliantWall(
             plant,
@@ -144,9 +146,15 @@ def _AddWall(
     )
     system.set_name("compliant_wall")
     builder.Connect(kinematics.kinematics_output, system.kinematics_input)
-    builder.Connect(
-        system.generalized_force_output, plant.get_applied_generalized_force_input_port()
-    )
+    generalized_force = system.generalized_force_output
+    collisions = [(f.start, f.end, f.value, f.joint) for f in faults if f.kind == "joint_torque"]
+    if collisions:
+        # A link hitting something: its torque summed with the wall's.
+        collision = builder.AddSystem(JointTorqueFault(plant.num_velocities(), collisions))
+        collision.set_name("joint_torque_fault")
+        builder.Connect(generalized_force, collision.generalized_force_input)
+        generalized_force = collision.generalized_force_output
+    builder.Connect(generalized_force, plant.get_applied_generalized_force_input_port())
     return system
 
 

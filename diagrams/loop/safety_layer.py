@@ -33,6 +33,8 @@ __all__ = [
     "SafetyLayer",
     "AddSafetyLayer",
     "CapStepForSampledMonitor",
+    "STOP_SPEED",
+    "collision_reaction",
     "contact_force_threshold",
     "expected_noise",
     "fault_detection",
@@ -40,6 +42,7 @@ __all__ = [
     "reach_limit",
     "safety_columns",
     "safety_metrics",
+    "tip_speed",
 ]
 
 # The wall normal in X = (x, y, theta).
@@ -54,6 +57,11 @@ TOLERANCE_SHARE = 0.2
 TOLERANCE_NOISE_DEVIATIONS = 6.0
 # The stiffness estimate updates once F - F_c is above this share of Fr.
 INFORMATIVE_SHARE = 0.2
+# After a collision the arm has stopped once the tip's speed stays below this, m/s, for
+# STOP_HOLD s: about half the approach bound v_max of the layer's arms (9.3-9.8 mm/s), a
+# speed at which a strike on a wall of Ke_max stays well under Fmax.
+STOP_SPEED = 5e-3
+STOP_HOLD = 0.05
 
 
 def expected_noise(scenario: Scenario) -> float:
@@ -101,6 +109,7 @@ class SafetyLayer:
         """The layer's signals worth logging, by name."""
         return {
             "fault_flags": self.detector.fault_flags_output,
+            "collision": self.detector.collision_output,
             "trusted_force": self.detector.trusted_force_output,
             "observed_force": self.observer.contact_force_output,
             "stiffness_estimate": self.estimator.stiffness_estimate_output,
@@ -232,6 +241,8 @@ def AddSafetyLayer(
     builder.Connect(observer.contact_force_output, detector.observed_force_input)
     builder.Connect(estimator.stiffness_estimate_output, detector.stiffness_estimate_input)
     builder.Connect(state, detector.estimated_state_input)
+    builder.Connect(observer.external_torque_output, detector.external_torque_input)
+    builder.Connect(detector.collision_output, law.collision_input)
     builder.Connect(detector.trusted_force_output, law.measured_force_input)
     builder.Connect(detector.sensor_fault_output, law.sensor_fault_input)
     builder.Connect(estimator.stiffness_estimate_output, law.stiffness_estimate_input)
@@ -261,7 +272,7 @@ def CapStepForSampledMonitor(scenario: Scenario, simulator) -> None:
 def _rising_edges(time: np.ndarray, flags: np.ndarray) -> list[dict]:
     """Each time a flag turns on: {"time", "kind"}, in time order."""
     detections = []
-    for column, kind in enumerate(FAULT_FLAGS):
+    for column, kind in enumerate(FAULT_FLAGS + ("collision",)):
         on = flags[:, column] > 0.5
         starts = np.nonzero(on & ~np.concatenate([[False], on[:-1]]))[0]
         detections += [{"time": float(time[i]), "kind": kind} for i in starts]
@@ -278,6 +289,7 @@ def safety_columns(logs: dict) -> dict[str, np.ndarray]:
     }
     for column, kind in enumerate(FAULT_FLAGS):
         columns[f"fault_{kind}"] = logs["fault_flags"][:, column]
+    columns["collision"] = logs["collision"][:, 0]
     return columns
 
 
@@ -332,7 +344,7 @@ def safety_metrics(result) -> dict:
     logs = result.safety
     time = logs["time"]
     metrics = {key: value for key, value in logs["numbers"].items() if key != "in_contact"}
-    metrics["detections"] = _rising_edges(time, logs["fault_flags"])
+    metrics["detections"] = _rising_edges(time, np.hstack([logs["fault_flags"], logs["collision"]]))
     metrics["final_stiffness_estimate"] = float(logs["stiffness_estimate"][-1, 0])
     metrics["final_gain_scale"] = float(logs["gain_scale"][-1, 0])
     metrics.update(logs.get("first_contact", {}))
@@ -351,3 +363,44 @@ def fault_detection(detections: list[dict], start: float, end: float) -> dict:
                 "detection_delay": detection["time"] - start,
             }
     return {"detected_time": None, "detected_kind": None, "detection_delay": None}
+
+
+def tip_speed(result, plant) -> np.ndarray:
+    """The fingertip's speed along its path at each logged sample, m/s: |J_t(q) v|, J_t the
+    translational rows of the fingertip's Jacobian."""
+    kinematics = PlanarFrameKinematics(plant, result.scenario.arm.fingertip_frame)
+    speeds = np.empty(len(result.time))
+    for row, (q, v) in enumerate(zip(result.joint_positions, result.joint_velocities, strict=True)):
+        kinematics.set_state(np.concatenate([q, v]))
+        speeds[row] = np.linalg.norm((kinematics.jacobian() @ v)[:2])
+    return speeds
+
+
+def collision_reaction(result, start: float, detected_time: float | None) -> dict:
+    """How the arm reacted to a joint_torque fault starting at `start`, detected at
+    `detected_time`: when it stopped (the first logged time after the detection from which
+    the tip's speed stays below STOP_SPEED for STOP_HOLD), the times from the fault's start
+    to the detection and to the stop, and the peak contact force and joint torque (the
+    actuators', absolute) from the fault's start to the end of the run."""
+    time = result.time
+    after = time >= start
+    reaction = {
+        "stop_speed_threshold": STOP_SPEED,
+        "stop_time": None,
+        "time_to_stop": None,
+        "peak_force_after_collision": float(np.max(result.force[after])) if after.any() else None,
+        "peak_joint_torque_after_collision": (
+            float(np.max(np.abs(result.actuation[after]))) if after.any() else None
+        ),
+    }
+    speed = result.safety.get("tip_speed")
+    if detected_time is None or speed is None:
+        return reaction
+    slow = speed < STOP_SPEED
+    for row in np.nonzero((time >= detected_time) & slow)[0]:
+        window = (time >= time[row]) & (time <= time[row] + STOP_HOLD)
+        if time[-1] >= time[row] + STOP_HOLD and np.all(slow[window]):
+            reaction["stop_time"] = float(time[row])
+            reaction["time_to_stop"] = float(time[row] - start)
+            break
+    return reaction

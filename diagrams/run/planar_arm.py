@@ -13,11 +13,13 @@ from admittance.diagrams.loop.planar_arm import BuildClosedLoop, ClosedLoop, Set
 from admittance.diagrams.loop.safety_layer import (
     CapStepForSampledMonitor,
     SafetyLayer,
+    collision_reaction,
     fault_detection,
     first_contact_approach,
     reach_limit,
     safety_columns,
     safety_metrics,
+    tip_speed,
 )
 from admittance.diagrams.run.engine import RunResult, finish_run, simulate_loop
 from admittance.diagrams.run.metrics import (
@@ -218,6 +220,10 @@ def compute_metrics(result: SimulationResult) -> dict:
         if result.safety is not None:
             detections = safety_metrics(result)["detections"]
             metrics["faults"][-1].update(fault_detection(detections, fault.start, fault.end))
+            if fault.kind == "joint_torque":
+                metrics["faults"][-1].update(
+                    collision_reaction(result, fault.start, metrics["faults"][-1]["detected_time"])
+                )
     _add_safety_metrics(metrics, result)
     if scenario.wall.velocity != 0.0:
         moving = window_mask(
@@ -342,6 +348,8 @@ def _collect(
         for name in loop.admittance.log_ports():
             result.safety[name] = _log_data(loop, context, name)[1]
         result.safety["first_contact"] = first_contact_approach(result, loop.admittance.law)
+        if any(fault.kind == "joint_torque" for fault in scenario.faults):
+            result.safety["tip_speed"] = tip_speed(result, loop.plant)
         result.safety["reach_limited_time"] = reach_limit(
             result, loop.plant, loop.pid.effort_limits
         )

@@ -108,6 +108,7 @@ FAULT_KINDS = (
     "sensor_saturated",
     "wall_retract",
     "stiffness_jump",
+    "joint_torque",
 )
 
 
@@ -116,35 +117,50 @@ NOISY_FAULT_KINDS = ("sensor_stuck", "sensor_zero", "sensor_saturated")
 
 
 # The fault kinds that read `value`.
-FAULT_KINDS_WITH_VALUE = ("sensor_stuck", "sensor_saturated", "wall_retract", "stiffness_jump")
+FAULT_KINDS_WITH_VALUE = (
+    "sensor_stuck",
+    "sensor_saturated",
+    "wall_retract",
+    "stiffness_jump",
+    "joint_torque",
+)
 
 
 @dataclass
 class FaultConfig:
     # One of FAULT_KINDS: the sensor reads NaN / a stuck value / 0 N / a full-scale value;
-    # the wall jumps back along +x by `value` m and returns; Ke becomes `value` N/m.
+    # the wall jumps back along +x by `value` m and returns; Ke becomes `value` N/m; an
+    # external torque of `value` N m acts on joint `joint` (a link hitting something).
     kind: str = "sensor_nan"
     # When the fault starts and ends, s.
     start: float = 1.0
     end: float = 1.5
     # sensor_stuck and sensor_saturated: the reading (N); wall_retract: the jump (m);
-    # stiffness_jump: Ke during the fault (N/m). Unused by sensor_nan and sensor_zero.
+    # stiffness_jump: Ke during the fault (N/m); joint_torque: the torque (N m, positive
+    # along the joint's axis). Unused by sensor_nan and sensor_zero.
     value: float = 0.0
     # sensor_stuck, sensor_zero and sensor_saturated: keep the sensor's noise on the replaced
     # reading (a real dropout still shows the ADC's noise); false = a noise-free constant.
     noisy: bool = False
+    # joint_torque: the joint's index in the arm's URDF, from the base (the planar arm:
+    # 0 the shoulder, 1 the elbow, 2 the wrist). Unused by the other kinds.
+    joint: int = 0
 
-    ENTRY_SUMMARY: ClassVar[str] = "{kind, start, end, value} mappings"
+    ENTRY_SUMMARY: ClassVar[str] = "{kind, start, end, value[, joint]} mappings"
     MISSING_HINT: ClassVar[str] = (
-        "a fault needs kind, start and end (s), and value for " + ", ".join(FAULT_KINDS_WITH_VALUE)
+        "a fault needs kind, start and end (s), value for "
+        + ", ".join(FAULT_KINDS_WITH_VALUE)
+        + ", and joint for joint_torque"
     )
 
     @staticmethod
     def required_fields(entry: dict) -> tuple[str, ...]:
-        """kind, start and end, and value for the kinds that read it: left out, they would
-        silently take the defaults (a fault from 1 s to 1.5 s)."""
+        """kind, start and end, value for the kinds that read it, and joint for
+        joint_torque: left out, they would silently take the defaults (a fault from 1 s to
+        1.5 s, on the shoulder)."""
         value = ("value",) if entry.get("kind") in FAULT_KINDS_WITH_VALUE else ()
-        return ("kind", "start", "end", *value)
+        joint = ("joint",) if entry.get("kind") == "joint_torque" else ()
+        return ("kind", "start", "end", *value, *joint)
 
 
 @dataclass

@@ -37,6 +37,8 @@ __all__ = [
 
 # Stiffer than any contact this arm can make (steel on steel at this scale is ~1e9 N/m).
 MAX_STIFFNESS = 1e9
+# The largest joint_torque fault, N m: twice the arm's largest actuator effort (30 N m).
+MAX_JOINT_TORQUE = 60.0
 # Drake's RandomGenerator (a 32-bit Mersenne twister) takes the seed modulo 2**32.
 MAX_SEED = 2**32 - 1
 
@@ -243,6 +245,13 @@ def _check_entries(s: Scenario) -> None:
                 "keep)",
                 fault.noisy,
             )
+        if fault.kind == "joint_torque":
+            require(
+                fault.value != 0 and abs(fault.value) <= MAX_JOINT_TORQUE,
+                key + ".value",
+                f"non-zero and within +-{MAX_JOINT_TORQUE:g} N m for joint_torque",
+                fault.value,
+            )
 
 
 def _check_choices(s: Scenario) -> None:
@@ -321,6 +330,32 @@ def _check_urdf(arm) -> None:
         raise ScenarioError(f"{key}: {message}")
 
 
+@functools.lru_cache(maxsize=16)
+def _urdf_joint_count(path: str, modified: int, size: int) -> int:
+    """The number of joint velocities of the URDF `path` (read once per file version)."""
+    plant = MultibodyPlant(time_step=0.0)
+    Parser(plant).AddModels(path)
+    plant.Finalize()
+    return plant.num_velocities()
+
+
+def _check_joint_faults(s: Scenario) -> None:
+    """A joint_torque fault names a joint of the arm's URDF (read and checked by now)."""
+    for i, fault in enumerate(s.faults):
+        if fault.kind != "joint_torque":
+            continue
+        path = s.arm.urdf_path()
+        status = path.stat()
+        joints = _urdf_joint_count(str(path), status.st_mtime_ns, status.st_size)
+        require(
+            0 <= fault.joint < joints,
+            f"faults[{i}].joint",
+            f"a joint index in [0, {joints - 1}] (0 = the joint at the base; the planar "
+            "arm: 0 shoulder, 1 elbow, 2 wrist)",
+            fault.joint,
+        )
+
+
 def _check_relations(s: Scenario) -> None:
     """Checks that relate two keys (each key alone is valid by now)."""
     w, a = s.wall, s.admittance
@@ -394,6 +429,7 @@ def validate(scenario: Scenario) -> Scenario:
     _check_lists(scenario)
     _check_entries(scenario)
     _check_choices(scenario)
+    _check_joint_faults(scenario)
     _check_relations(scenario)
     _check_safety(scenario)
     return scenario
