@@ -15,10 +15,12 @@ Four kinds of fault, each one flag of ``fault_flags``:
 * ``implausible`` (after N_i = 3 samples): r disagrees with the arm's own estimate of the
   contact force F_hat (the momentum observer, systems/contact_force_observer.py, which uses
   the measured motion and the applied torques) by more than
-  F_tol + (|r[k] - r[k-1]| / T + k_hat |x'|) / K_o: the observer follows the force with
-  the lag 1 / K_o, so the allowance grows with the rate at which the force may be changing
-  (seen in the reading itself, or predicted from the tip's speed and the stiffness
-  estimate).
+  F_tol + (|r[k] - r[k-1]| + |F_hat[k] - F_hat[k-1]|) / (T K_o): the observer follows the
+  force through the lag 1 / K_o (dF_hat/dt = K_o (F - F_hat)), so the true force is
+  F_hat + F_hat' / K_o; the allowance is that lag seen in the observer's own rate, plus the
+  reading's rate, which covers the one-sample difference quotient's lag behind F_hat' at
+  an impact (docs/safety.md section 3 derives it). A tip following a moving wall at a
+  constant force moves without changing F_hat, so the wall's speed does not widen it.
 
 A fifth flag, ``collision`` (after N_c = 3 samples, latched to the end of the run), is not
 a sensor fault: the observer's residual r (the external joint torque, N m) has a part that
@@ -63,6 +65,7 @@ __all__ = [
     "SensorFaultDetector",
     "SensorFaultDetector_",
     "collision_tolerance",
+    "plausibility_allowance",
     "unexplained_torque",
 ]
 
@@ -86,7 +89,8 @@ UNCHANGED_FORCE = 1e-9
 _PREVIOUS, _STUCK, _IMPLAUSIBLE, _CLEAR_STUCK, _CLEAR_IMPLAUSIBLE = 0, 1, 2, 3, 4
 _STUCK_FLAG, _IMPLAUSIBLE_FLAG, _HELD = 5, 6, 7
 _COLLISION, _COLLISION_FLAG = 8, 9
-_STATE_SIZE = 10
+_PREVIOUS_OBSERVED = 10
+_STATE_SIZE = 11
 
 
 def _value(x) -> float:
@@ -102,6 +106,15 @@ def unexplained_torque(residual, normal_row) -> float:
     return float(np.linalg.norm(residual - explained))
 
 
+def plausibility_allowance(
+    reading_change: float, observed_change: float, period: float, observer_gain: float
+) -> float:
+    """The plausibility check's allowance beyond F_tol, N: (|dr| + |dF_hat|) / (T K_o), the
+    observer's lag F_hat' / K_o seen in its own change over the last sample, plus the
+    reading's (docs/safety.md section 3)."""
+    return (abs(reading_change) + abs(observed_change)) / (period * observer_gain)
+
+
 def collision_tolerance(normal_row, force_tolerance: float) -> float:
     """|j| F_tol, N m: the largest joint torque a fingertip force within the plausibility
     check's base tolerance makes; |r_perp| beyond it is evidence of a collision."""
@@ -114,7 +127,8 @@ def SensorFaultDetector_(T):
         """Sampled monitor of the force reading (module docstring).
 
         State (discrete, updated every `period`): previous reading, evidence counters,
-        the stuck and implausible flags, the held force.
+        the stuck and implausible flags, the held force, the collision's count and flag,
+        the previous observer estimate.
 
         .. pydrake_system::
 
@@ -206,6 +220,7 @@ def SensorFaultDetector_(T):
             if not self._frozen:
                 initial = np.zeros(_STATE_SIZE)
                 initial[_PREVIOUS] = math.nan
+                initial[_PREVIOUS_OBSERVED] = math.nan
                 self._state_index = self.DeclareDiscreteState(BasicVector_[T](initial))
                 self.DeclarePeriodicDiscreteUpdateEvent(
                     period_sec=self._period, offset_sec=0.0, update=self._Update
@@ -259,6 +274,7 @@ def SensorFaultDetector_(T):
             state = np.zeros(_STATE_SIZE)
             state[_PREVIOUS] = reading
             state[_HELD] = reading
+            state[_PREVIOUS_OBSERVED] = math.nan  # the observer's next sample starts its rate
             context.get_mutable_discrete_state(self._state_index).SetFromVector(state)
 
         # --- checks ------------------------------------------------------------------
@@ -307,6 +323,9 @@ def SensorFaultDetector_(T):
             reading = _value(self.measured_force_input.Eval(context)[0])
             nonfinite, saturated = self._instant_flags(reading)
             previous = state[_PREVIOUS]
+            observed = _value(self.observed_force_input.Eval(context)[0])
+            previous_observed = state[_PREVIOUS_OBSERVED]
+            state[_PREVIOUS_OBSERVED] = observed
             if nonfinite or saturated or not math.isfinite(previous):
                 # No evidence either way; the held value stays.
                 state[_PREVIOUS] = reading if not (nonfinite or saturated) else previous
@@ -317,7 +336,9 @@ def SensorFaultDetector_(T):
                 )
                 return
             change = abs(reading - previous)
-            observed = _value(self.observed_force_input.Eval(context)[0])
+            observed_change = (
+                observed - previous_observed if math.isfinite(previous_observed) else 0.0
+            )
             stiffness = _value(self.stiffness_estimate_input.Eval(context)[0])
             plant_state = self.estimated_state_input.Eval(context)
             self._kinematics.set_state(np.array([T(_value(x)) for x in plant_state]))
@@ -339,7 +360,9 @@ def SensorFaultDetector_(T):
                 stuck_evidence = stuck_evidence or (
                     predicted_rate * self._period > self._force_tolerance
                 )
-            allowance = (change / self._period + predicted_rate) / self._observer_gain
+            allowance = plausibility_allowance(
+                change, observed_change, self._period, self._observer_gain
+            )
             implausible_evidence = abs(reading - observed) > self._force_tolerance + allowance
             collision_evidence = False
             if self.external_torque_input.HasValue(context):

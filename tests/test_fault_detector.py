@@ -10,7 +10,11 @@ import numpy as np
 import pytest
 
 from admittance.diagrams.robots.planar_arm import SolvePlanarInverseKinematics
-from admittance.systems.fault_detector import FAULT_FLAGS, SensorFaultDetector
+from admittance.systems.fault_detector import (
+    FAULT_FLAGS,
+    SensorFaultDetector,
+    plausibility_allowance,
+)
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
 PERIOD = 0.005
@@ -239,15 +243,44 @@ def test_a_reading_that_follows_the_tip_into_the_wall_is_not_stuck(arm_plant, st
         assert not any(_sample(monitor, 5.0 + step * k, observed=5.0 + step * k).values())
 
 
-def test_the_plausibility_allowance_is_the_reading_s_rate_and_the_predicted_one(arm_plant):
-    """Tip into the wall at 1 cm/s (k_hat |x'| = 500 N/s), the reading rising 0.2525 N per
-    sample (50.5 N/s), the observer 6.5025 N above it: the allowance F_tol + (50.5 + 500) /
-    K_o = 6.505 N covers the gap by 2.5 mN (far above rounding), so it is plausible."""
-    monitor = _quiet_moving(arm_plant, [0.01, 0.0, 0.0])
+def test_the_plausibility_allowance_by_hand():
+    """(|dr| + |dF_hat|) / (T K_o): 0.1 N and 0.4 N of change in one 5 ms sample against
+    K_o = 100 1/s is 0.5 / 0.5 = 1 N; the sign of either change does not matter."""
+    assert plausibility_allowance(0.1, 0.4, PERIOD, 100.0) == pytest.approx(1.0, rel=1e-12)
+    assert plausibility_allowance(-0.1, -0.4, PERIOD, 100.0) == pytest.approx(1.0, rel=1e-12)
+    assert plausibility_allowance(0.0, 0.0, PERIOD, 100.0) == 0.0
+
+
+@pytest.mark.parametrize("gap, flagged", [(5.9975, False), (6.0025, True)])
+def test_the_plausibility_allowance_is_the_reading_s_rate_and_the_observer_s(
+    arm_plant, gap, flagged
+):
+    """The tip still, the reading and the observer both rising 1.25 N per sample (250 N/s),
+    the observer `gap` above the reading: the allowance F_tol + (250 + 250) / K_o = 6 N
+    covers 5.9975 N and not 6.0025 N (2.5 mN either side, far above rounding). The first
+    sample has no observer rate yet (allowance 3.5 N: one sample of evidence, not three)."""
+    monitor = _quiet_moving(arm_plant, [0.0, 0.0, 0.0])
     monitor[0].set_reading(monitor[1], 5.0)
-    for k in range(1, 6):
-        reading = 5.0 + 0.2525 * k
-        assert not _sample(monitor, reading, observed=reading + 6.5025)["implausible"]
+    flags = []
+    for k in range(1, 7):
+        reading = 5.0 + 1.25 * k
+        flags.append(_sample(monitor, reading, observed=reading + gap)["implausible"])
+    assert flags == ([False] * 6 if not flagged else [False, False, True, True, True, True])
+
+
+def test_a_tip_following_a_moving_wall_does_not_widen_the_allowance(arm_plant):
+    """The tip moving 1 cm/s along the normal at a constant force (a wall receding in
+    front of it; k_hat |x'| / K_o = 5e4 * 0.01 / 100 = 5 N, the allowance of the tip's
+    speed): a reading that agrees with the observer's 5 N is plausible, and a noisy one
+    2 N below it (a dropout that keeps the noise) is implausible at the third sample after
+    the onset, as on a static wall."""
+    detector = _detector(arm_plant, force_tolerance=1.0)
+    monitor = (detector, _at_the_pose(arm_plant, detector, [0.01, 0.0, 0.0]))
+    detector.set_reading(monitor[1], 5.0)
+    for reading in _noisy(20):
+        assert not any(_sample(monitor, reading).values())
+    flags = [_sample(monitor, r)["implausible"] for r in _noisy(5, seed=3, mean=3.0)]
+    assert flags == [False, False, False, True, True]
 
 
 @pytest.mark.parametrize("noise_std, change", [(NOISE, NOISE / 100.0), (0.0, 1e-9)])
