@@ -150,3 +150,33 @@ def test_a_static_wall_three_times_stiffer_than_stated_is_reported_and_held_unde
     assert metrics["peak_force"] <= bound
     late = result.time > result.time[-1] - 0.3
     assert np.mean(np.abs(result.force[late] - FR)) < 0.02 * FR
+
+
+def test_a_wall_approaching_at_the_derived_bound_stays_under_fmax():
+    """In contact a wall that starts to approach at v_w adds at most F_peak(v_w, Ke) to Fr
+    (section 1's impact with the law frozen): under Fmax for v_w <= v_max (Fmax - Fr) /
+    Fmax = 4.9 mm/s at Ke_max. The 1e6 N/m wall approaches at 4.9 mm/s from 1.5 to 2.0 s
+    (contact from 0.86 s): measured 7.99 N, no loss; then the law has caught up, and the
+    force is Fr + v_w / (Gamma K) = 5 + 0.0049 / 0.012 = 5.41 N (5.45 N at 1.99 s)."""
+    speed = 0.0049
+    result = run_scenario(
+        load_scenario(
+            "safe_contact",
+            [
+                "arm.initial_position=[0.145,-0.25,1.5707963267948966]",
+                "wall.stiffness=1e6",
+                f"wall.velocity={-speed}",
+                "wall.motion_start=1.5",
+                "wall.motion_end=2.0",
+                "sensor.kind=ideal",
+                "duration=2.1",
+            ],
+        )
+    )
+    metrics = result.metrics
+    bound = metrics["safety"]["approach_speed"] * (FMAX - FR) / FMAX
+    assert speed == pytest.approx(bound, rel=0.01)
+    assert metrics["peak_force"] <= FMAX
+    assert metrics["contact_losses"] == 0
+    steady = result.force[np.searchsorted(result.time, 1.99)]
+    assert steady == pytest.approx(FR + speed / (1e-5 * 1200.0), abs=0.1)
