@@ -314,14 +314,17 @@ def SafeAdmittance_(T):
                 payload_mass=self._payload,
                 translational_jacobian=jacobian[:2],
             )
+            # Beyond the stated bound (docs/safety.md, section 7): on a wall the estimate
+            # shows stiffer than Ke_max, the approach speed is the estimate's (any
+            # re-contact peaks under Fmax there); the damper stays Ke_max's.
+            stiffest = max(self._max_stiffness, stiffness_estimate)
             damping = contact_model.injected_damping(
                 mass, self._kp, self._kd, self._max_stiffness, self._damping_ratio
             )
             total_damping = self._kd + damping
             approach_speed = contact_model.safe_approach_speed(
-                self._max_force, mass, self._kp, total_damping, self._max_stiffness
+                self._max_force, mass, self._kp, total_damping, stiffest
             )
-            stiffest = max(self._max_stiffness, stiffness_estimate)
             overshoot = contact_model.step_overshoot(
                 contact_model.damping_ratio(mass, self._kp, total_damping, stiffest)
             )

@@ -34,6 +34,7 @@ __all__ = [
     "AddSafetyLayer",
     "CapStepForSampledMonitor",
     "STOP_SPEED",
+    "STIFFER_FACTOR",
     "collision_reaction",
     "contact_force_threshold",
     "expected_noise",
@@ -41,6 +42,7 @@ __all__ = [
     "first_contact_approach",
     "reach_limit",
     "safety_columns",
+    "stiffer_than_stated",
     "safety_metrics",
     "tip_speed",
 ]
@@ -62,6 +64,10 @@ INFORMATIVE_SHARE = 0.2
 # speed at which a strike on a wall of Ke_max stays well under Fmax.
 STOP_SPEED = 5e-3
 STOP_HOLD = 0.05
+# A contact stiffer than stated (docs/safety.md, section 7): the estimate above this
+# factor times Ke_max. It starts at the prior Ke_max and rises only on a stiffer secant:
+# 1.07e6 N/m at most on the 1e6 N/m walls measured; 2 leaves room for the secant's noise.
+STIFFER_FACTOR = 2.0
 
 
 def expected_noise(scenario: Scenario) -> float:
@@ -346,11 +352,25 @@ def safety_metrics(result) -> dict:
     metrics = {key: value for key, value in logs["numbers"].items() if key != "in_contact"}
     metrics["detections"] = _rising_edges(time, np.hstack([logs["fault_flags"], logs["collision"]]))
     metrics["final_stiffness_estimate"] = float(logs["stiffness_estimate"][-1, 0])
+    metrics["stiffer_than_stated"] = stiffer_than_stated(
+        time, logs["stiffness_estimate"][:, 0], result.scenario.safety.max_stiffness
+    )
     metrics["final_gain_scale"] = float(logs["gain_scale"][-1, 0])
     metrics.update(logs.get("first_contact", {}))
     metrics["reach_limited_time"] = logs.get("reach_limited_time")
     metrics["reach_limited"] = metrics["reach_limited_time"] is not None
     return metrics
+
+
+def stiffer_than_stated(time, estimate, max_stiffness: float) -> dict | None:
+    """The first logged sample whose stiffness estimate is above STIFFER_FACTOR x Ke_max:
+    {"time", "estimate", "threshold"}; None if there is none."""
+    threshold = STIFFER_FACTOR * max_stiffness
+    above = np.nonzero(np.asarray(estimate) > threshold)[0]
+    if above.size == 0:
+        return None
+    row = above[0]
+    return {"time": float(time[row]), "estimate": float(estimate[row]), "threshold": threshold}
 
 
 def fault_detection(detections: list[dict], start: float, end: float) -> dict:
