@@ -110,7 +110,7 @@ def FlexiForceSensor_(T):
             F_h     = clamp(p, (1 - h/2) F+, (1 + h/2) F+)            (play band)
             dp/dt   = (F_h - p) / tau                                 (state p, N)
             D       = 1 + d * log10(1 + s / t0),  t0 = 1 s            (drift factor)
-            ds/dt   = min(F+ / F_on, 1),  F_on = 1 N                  (state s, s)
+            ds/dt   = min(F_h / F_on, 1),  F_on = 1 N                 (state s, s)
             F+     <- F_h * D                                        (into the bow, G, V_s)
 
         h (``hysteresis``) is the width of the band between the loading and the unloading
