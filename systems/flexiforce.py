@@ -50,6 +50,12 @@ SENSOR_KINDS = ("flexiforce", "ideal")
 # Datasheet bound on the unloaded resistance (> 5 MOhm), as a conductance bound in S.
 _MAX_UNLOADED_CONDUCTANCE = 1.0 / 5.0e6
 
+# Drift: the time scale t0 (s) of the time under load, the force F_on (N) above which the
+# sensor counts as loaded, and 1 / ln 10.
+_INV_DRIFT_TIME = 1.0 / 1.0
+_INV_ONSET_FORCE = 1.0 / 1.0
+_INV_LN10 = 1.0 / math.log(10.0)
+
 # The quadratic bow keeps the force-to-conductance map monotone while |linearity_error| < 1/4.
 _MAX_ABS_LINEARITY_ERROR = 0.25
 
@@ -96,7 +102,29 @@ def FlexiForceSensor_(T):
         Above full scale the bow is zero. The reading saturates at
         ``saturation_force`` = (V_rail - V_offset) / k when the op-amp output hits its rail.
         The negative rail never binds (V_drive < 0, G >= 0 give V_s >= 0), so it is not
-        modelled. Repeatability, hysteresis, drift and temperature effects are not modelled.
+        modelled. Repeatability and temperature effects are not modelled.
+
+        Hysteresis and drift (both 0 by default, and then neither state below exists, so
+        the default sensor is unchanged), applied to F+ before the bow::
+
+            F_h     = clamp(p, (1 - h/2) F+, (1 + h/2) F+)            (play band)
+            dp/dt   = (F_h - p) / tau                                 (state p, N)
+            D       = 1 + d * log10(1 + s / t0),  t0 = 1 s            (drift factor)
+            ds/dt   = min(F_h / F_on, 1),  F_on = 1 N                 (state s, s)
+            F+     <- F_h * D                                        (into the bow, G, V_s)
+
+        h (``hysteresis``) is the width of the band between the loading and the unloading
+        branch as a fraction of the force: on a rising force the reading trails at
+        (1 - h/2) F, on a falling one it leads at (1 + h/2) F, and inside the band it holds
+        (a play element whose edge p relaxes to with the filter's tau). The datasheet's
+        hysteresis (< 4.5 % of full scale, the loading-unloading difference) is h = 0.045
+        at full scale. d (``drift``) is the reading's rise per decade of the time under
+        load s, the force held constant (datasheet: < 5 % per logarithmic time scale):
+        s counts seconds loaded above F_on = 1 N (a lighter force counts in proportion),
+        and it is not reset when the load is removed (the A201's recovery is not modelled).
+        With t0 = 1 s the reading is (1 + d log10(1 + t)) F after t seconds under load:
+        1 + d at 9 s, 1 + 2 d at 99 s. The continuous state is then [V, p, s] (the ones
+        that exist, in that order); both are allowed only with the continuous filter.
 
         Noise: n is the ``noise`` input in N, added to the calibrated reading after the
         analog filter (it stands for ADC, wiring and sensor noise referred to force). So a
@@ -153,6 +181,8 @@ def FlexiForceSensor_(T):
             linearity_error: float = 0.0,
             full_scale_force: float = 100.0,
             period: float = 0.0,
+            hysteresis: float = 0.0,
+            drift: float = 0.0,
             converter=None,
         ) -> None:
             """Declares the ports and the filter state.
@@ -175,6 +205,10 @@ def FlexiForceSensor_(T):
                     shapes the linearity bow.
                 period: 0 for the continuous filter, otherwise the sampling period of the
                     readout in s (the filter is then advanced exactly over each period).
+                hysteresis: h, width of the loading-unloading band as a fraction of the
+                    force (0 <= h <= 0.1; datasheet < 0.045 of full scale).
+                drift: d, rise of the reading per decade of time under load, as a
+                    fraction (0 <= d <= 0.1; datasheet < 0.05).
                 converter: scalar converter, supplied by TemplateSystem.
 
             Raises:
@@ -213,6 +247,14 @@ def FlexiForceSensor_(T):
             _check(f_fs > 0.0, "full_scale_force", full_scale_force, "> 0 N")
             h = _require_finite("period", period, ">= 0 s (0 = continuous)")
             _check(h >= 0.0, "period", period, ">= 0 s (0 = continuous)")
+            hys = _require_finite("hysteresis", hysteresis, "in [0, 0.1]")
+            _check(0.0 <= hys <= 0.1, "hysteresis", hysteresis, "in [0, 0.1]")
+            dri = _require_finite("drift", drift, "in [0, 0.1]")
+            _check(0.0 <= dri <= 0.1, "drift", drift, "in [0, 0.1]")
+            if h > 0.0 and (hys > 0.0 or dri > 0.0):
+                raise ValueError(
+                    f"hysteresis and drift need the continuous filter (period 0); got {period!r}"
+                )
 
             # Kept for _construct_copy (scalar conversion).
             self._construct_args = dict(
@@ -226,8 +268,12 @@ def FlexiForceSensor_(T):
                 linearity_error=e_lin,
                 full_scale_force=f_fs,
                 period=h,
+                hysteresis=hys,
+                drift=dri,
             )
             self._kind = kind
+            self._hysteresis = hys
+            self._drift = dri
             self._period = h
             # Precomputed constants (Python floats).
             self._v_offset = v_offset  # V, unloaded output
@@ -241,9 +287,10 @@ def FlexiForceSensor_(T):
             # Fraction of the filter's state left after one sampling period.
             self._decay = math.exp(-h * self._inv_tau) if h > 0 else 0.0
             if T is float:
-                self._max, self._min = max, min
+                self._max, self._min, self._log = max, min, math.log
             else:
                 self._max, self._min = pydrake.math.max, pydrake.math.min
+                self._log = pydrake.math.log
 
             self.contact_force_input = self.DeclareVectorInputPort("contact_force", 1)
             self.noise_input = self.DeclareVectorInputPort("noise", 1)
@@ -267,7 +314,13 @@ def FlexiForceSensor_(T):
                     prerequisites_of_calc={self.xd_ticket(), self.noise_input.ticket()},
                 )
                 return
-            self.DeclareContinuousState(BasicVector_[T]([v_offset]))
+            initial = [v_offset]
+            # Indices of the play element's p and the time under load s in the state.
+            self._play_index = len(initial) if hys > 0.0 else None
+            initial += [0.0] if hys > 0.0 else []
+            self._load_index = len(initial) if dri > 0.0 else None
+            initial += [0.0] if dri > 0.0 else []
+            self.DeclareContinuousState(BasicVector_[T](initial))
             if T is float:
                 calc_output = self._calc_output_float
             else:
@@ -301,10 +354,25 @@ def FlexiForceSensor_(T):
                 force = self.contact_force_input.Eval(context).item()
             else:
                 force = self.contact_force_input.Eval(context)[0]
-            voltage = context.get_continuous_state_vector().GetAtIndex(0)
-            derivatives.get_mutable_vector().SetAtIndex(
-                0, (self._static_voltage(force) - voltage) * self._inv_tau
-            )
+            state = context.get_continuous_state_vector()
+            voltage = state.GetAtIndex(0)
+            rates = derivatives.get_mutable_vector()
+            if self._play_index is None and self._load_index is None:
+                rates.SetAtIndex(0, (self._static_voltage(force) - voltage) * self._inv_tau)
+                return
+            force = self._max(force, 0.0)
+            if self._play_index is not None:
+                played = state.GetAtIndex(self._play_index)
+                half = 0.5 * self._hysteresis
+                edge = self._max(self._min(played, (1.0 + half) * force), (1.0 - half) * force)
+                rates.SetAtIndex(self._play_index, (edge - played) * self._inv_tau)
+                force = edge
+            if self._load_index is not None:
+                loaded = state.GetAtIndex(self._load_index)
+                rates.SetAtIndex(self._load_index, self._min(force * _INV_ONSET_FORCE, 1.0))
+                decades = self._log(1.0 + loaded * _INV_DRIFT_TIME) * _INV_LN10
+                force = force * (1.0 + self._drift * decades)
+            rates.SetAtIndex(0, (self._static_voltage(force) - voltage) * self._inv_tau)
 
         def _calc_output_float(self, context, output) -> None:
             """F_meas = (V - V_offset) / k + n, double-only fast path."""
@@ -342,6 +410,16 @@ def FlexiForceSensor_(T):
         def kind(self) -> str:
             """``"flexiforce"`` or ``"ideal"``."""
             return self._kind
+
+        @property
+        def hysteresis(self) -> float:
+            """Width h of the loading-unloading band, a fraction of the force."""
+            return self._hysteresis
+
+        @property
+        def drift(self) -> float:
+            """Rise d of the reading per decade of time under load, a fraction."""
+            return self._drift
 
         @property
         def period(self) -> float:

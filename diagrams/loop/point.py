@@ -88,7 +88,11 @@ def AddSensorChain(
     else:
         system = builder.AddSystem(
             FlexiForceSensor(
-                kind=chain.kind, filter_cutoff_hz=chain.filter_cutoff, period=chain.period
+                kind=chain.kind,
+                filter_cutoff_hz=chain.filter_cutoff,
+                period=chain.period,
+                hysteresis=chain.hysteresis,
+                drift=chain.drift,
             )
         )
         system.set_name(point.system_name("flexiforce_sensor"))

@@ -37,6 +37,10 @@ class SensorChain:
     noise_period: float = 0.005
     # Readout period of the sensor, s (0 = a continuous output).
     period: float = 0.0
+    # Loading-unloading band of the FlexiForce, a fraction of the force (0 = none).
+    hysteresis: float = 0.0
+    # Rise of the FlexiForce's reading per decade of time under load, a fraction (0 = none).
+    drift: float = 0.0
     # Injected sensor faults, (kind, start s, end s, value, noisy), kinds sensor_*.
     faults: list[tuple[str, float, float, float, bool]] = field(default_factory=list)
 

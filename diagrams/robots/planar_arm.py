@@ -186,6 +186,8 @@ def fingertip_point(scenario: Scenario) -> ForcePoint:
             filter_cutoff=scenario.sensor.filter_cutoff,
             noise_std=scenario.sensor.noise_std,
             noise_period=scenario.sensor.noise_period,
+            hysteresis=scenario.sensor.hysteresis,
+            drift=scenario.sensor.drift,
             faults=[
                 (f.kind, f.start, f.end, f.value, f.noisy)
                 for f in scenario.faults

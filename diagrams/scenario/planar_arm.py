@@ -155,6 +155,12 @@ class SensorConfig(SensorSection):
     # The shared keys (kind, noise_std, filter_cutoff), and:
     # Sampling period of the noise (the ADC period), s.
     noise_period: float = 0.005
+    # The FlexiForce's loading-unloading band, a fraction of the force (datasheet: < 4.5 %
+    # of full scale; 0 = none, the model of systems/flexiforce.py).
+    hysteresis: float = 0.0
+    # The FlexiForce's drift, a fraction of the reading per decade of time under load
+    # (datasheet: < 5 % per logarithmic time scale; 0 = none).
+    drift: float = 0.0
 
 
 @dataclass

@@ -125,6 +125,8 @@ RANGES: dict[str, Range] = {
     "sensor.noise_std": Range("[0, 100]", "N"),
     "sensor.noise_period": Range(">= 1e-5", "s (a 100 kHz ADC)"),
     "sensor.filter_cutoff": Range("(0, 1e6]", "Hz"),
+    "sensor.hysteresis": Range("[0, 0.1]", "(fraction of the force)"),
+    "sensor.drift": Range("[0, 0.1]", "(fraction per decade of time under load)"),
     # Finer than 1e-8 the implicit integrator crawls (1e-10: ten times slower than 1e-8)
     # or gives up at the start.
     "simulator.accuracy": Range("[1e-8, 0.1]"),
