@@ -19,7 +19,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-__all__ = ["ForceLaw", "ForcePoint", "SensorChain"]
+from admittance.diagrams.scenario.sections import AdmittanceSection, SensorSection
+
+__all__ = ["ForceLaw", "ForcePoint", "SensorChain", "force_law", "sensor_chain"]
 
 
 @dataclass
@@ -104,3 +106,28 @@ class ForcePoint:
     def system_name(self, role: str) -> str:
         """The name of this point's system that plays `role` (``finger1_cartesian_pid``)."""
         return f"{self.name}_{role}" if self.name else role
+
+
+def sensor_chain(section: SensorSection, **robot_keys) -> SensorChain:
+    """A point's sensor chain from a scenario's shared `sensor` section (kind, filter
+    cut-off, noise), with what the robot adds (its readout period, noise period, faults,
+    the arm's hysteresis and drift) as keyword arguments."""
+    return SensorChain(
+        kind=section.kind,
+        filter_cutoff=section.filter_cutoff,
+        noise_std=section.noise_std,
+        **robot_keys,
+    )
+
+
+def force_law(kind: str, section: AdmittanceSection, **robot_keys) -> ForceLaw:
+    """A point's force law of `kind` from a scenario's shared `admittance` section (Gamma,
+    alpha, the travel bounds), with what the robot adds as keyword arguments."""
+    return ForceLaw(
+        kind=kind,
+        gamma=section.gamma,
+        alpha=section.alpha,
+        max_push=section.max_push,
+        max_retract=section.max_retract,
+        **robot_keys,
+    )

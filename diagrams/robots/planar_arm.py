@@ -14,7 +14,7 @@ from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
 from pydrake.multibody.tree import SpatialInertia, UnitInertia
 from pydrake.systems.framework import DiagramBuilder
 
-from admittance.diagrams.robots.description import ForceLaw, ForcePoint, SensorChain
+from admittance.diagrams.robots.description import ForcePoint, force_law, sensor_chain
 from admittance.diagrams.scenario.planar_arm import ArmConfig, Scenario
 from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
@@ -181,10 +181,8 @@ def fingertip_point(scenario: Scenario) -> ForcePoint:
         name="",
         frame=scenario.arm.fingertip_frame,
         force_axes=(WALL_NORMAL_AXIS,),
-        sensor=SensorChain(
-            kind=scenario.sensor.kind,
-            filter_cutoff=scenario.sensor.filter_cutoff,
-            noise_std=scenario.sensor.noise_std,
+        sensor=sensor_chain(
+            scenario.sensor,
             noise_period=scenario.sensor.noise_period,
             hysteresis=scenario.sensor.hysteresis,
             drift=scenario.sensor.drift,
@@ -194,13 +192,10 @@ def fingertip_point(scenario: Scenario) -> ForcePoint:
                 if f.kind.startswith("sensor_")
             ],
         ),
-        law=ForceLaw(
-            kind=scenario.controller_kind,
-            gamma=admittance.gamma,
-            alpha=admittance.alpha,
+        law=force_law(
+            scenario.controller_kind,
+            admittance,
             period=admittance.period,
-            max_push=admittance.max_push,
-            max_retract=admittance.max_retract,
             max_force=admittance.max_force,
             force_bound_gain=admittance.force_bound_gain,
             baseline=baseline_gains(scenario),

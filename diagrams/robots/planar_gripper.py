@@ -58,7 +58,7 @@ from pydrake.multibody.plant import (
 from pydrake.multibody.tree import FixedOffsetFrame
 from pydrake.systems.framework import DiagramBuilder
 
-from admittance.diagrams.robots.description import ForceLaw, ForcePoint, SensorChain
+from admittance.diagrams.robots.description import ForcePoint, force_law, sensor_chain
 from admittance.diagrams.scenario.planar_gripper import FINGERS, GraspScenario
 
 __all__ = [
@@ -254,21 +254,10 @@ def finger_points(scenario: GraspScenario) -> list[ForcePoint]:
             coordinates=FINGER_COORDINATES,
             expressed_in=contact_frame(finger),
             force_axes=(NORMAL_AXIS,),
-            sensor=SensorChain(
-                kind=sensor.kind,
-                filter_cutoff=sensor.filter_cutoff,
-                noise_std=sensor.noise_std,
-                noise_period=period or CONTINUOUS_NOISE_PERIOD,
-                period=period,
+            sensor=sensor_chain(
+                sensor, noise_period=period or CONTINUOUS_NOISE_PERIOD, period=period
             ),
-            law=ForceLaw(
-                kind=scenario.controller.kind,
-                gamma=admittance.gamma,
-                alpha=admittance.alpha,
-                period=period,
-                max_push=admittance.max_push,
-                max_retract=admittance.max_retract,
-            ),
+            law=force_law(scenario.controller.kind, admittance, period=period),
             kp=list(pid.kp),
             kd=list(pid.kd),
             ki=list(pid.ki),
