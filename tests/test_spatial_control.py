@@ -28,6 +28,7 @@ from pydrake.systems.primitives import ConstantVectorSource  # noqa: E402
 from admittance.diagrams.loop.point import AddPointKinematics, AddPointPid  # noqa: E402
 from admittance.diagrams.robots.description import ForcePoint  # noqa: E402
 from admittance.systems.cartesian_pid import PostureTask  # noqa: E402
+from admittance.systems.optimal_admittance import OptimalAdmittance  # noqa: E402
 from admittance.systems.spatial_kinematics import (  # noqa: E402
     SPATIAL_COORDINATES,
     SpatialKinematics,
@@ -415,3 +416,35 @@ def test_the_posture_moves_the_elbow_to_q0_without_moving_the_tool():
     remaining = np.linalg.norm(q - q0) / np.linalg.norm(READY - q0)
     assert remaining < 0.05, remaining
     assert worst[0] < 1e-4 and math.degrees(worst[1]) < 0.05, worst
+
+
+# --- the paper's law on a subset of the six axes ----------------------------------------------
+
+
+@pytest.mark.parametrize("axes", [(2,), (2, 3, 4)])
+def test_the_admittance_law_runs_on_any_subset_of_six_axes(axes):
+    """Eq. 10 (alpha = 0) on a constant force error E: dXr_i/dt = Gamma K_i E_i on each
+    force axis i (K_i the PID's Kp there: N/m on z, N m/rad on rx, ry), Xr = 0 on the
+    others. After 0.1 s: Xr_i = Gamma K_i E_i 0.1, by hand."""
+    point = ForcePoint(name="", frame=TOOL, coordinates=SPATIAL_COORDINATES, force_axes=axes)
+    point.kp = list(KP)
+    block = OptimalAdmittance(
+        gamma=1e-5,
+        alpha=0.0,
+        stiffness=point.force_axis_stiffness,
+        force_axes=list(axes),
+        num_axes=6,
+        max_push=1.0,
+        max_retract=1.0,
+    )
+    errors = np.array([10.0, -2.0, 3.0][: len(axes)])  # N on z, N m on the tilts
+    simulator = Simulator(block)
+    context = simulator.get_mutable_context()
+    block.measured_force_input.FixValue(context, np.zeros(len(axes)))
+    block.desired_force_input.FixValue(context, errors)
+    block.set_initial_force_error(context, errors)
+    simulator.AdvanceTo(0.1)
+    expected = np.zeros(6)
+    expected[list(axes)] = 1e-5 * np.array([KP[a] for a in axes]) * errors * 0.1
+    offset = block.reference_offset_output.Eval(context)
+    np.testing.assert_allclose(offset, expected, rtol=1e-9, atol=1e-15)
