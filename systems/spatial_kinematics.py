@@ -179,10 +179,13 @@ class SpatialFrameKinematics(PlanarFrameKinematics):
     def pose(self):
         """X at the last state set: position of F's origin and rotation vector of R_EF."""
         X_EF = self.plant.CalcRelativeTransform(self._context, self._world, self.frame)
-        matrix = X_EF.GetAsMatrix34()
-        rotation = dict(zip(ROTATION_COORDINATES, rotation_vector(matrix), strict=True))
+        # Drake's quaternion of R_EF (its own Shepperd's method, in C++), then its log.
+        quaternion = X_EF.rotation().ToQuaternion()
+        vector = _quaternion_log(quaternion.w(), quaternion.x(), quaternion.y(), quaternion.z())
+        rotation = dict(zip(ROTATION_COORDINATES, vector, strict=True))
+        position = X_EF.translation()
         return np.array(
-            [rotation[c] if c in rotation else matrix["xyz".index(c), 3] for c in self.coordinates]
+            [rotation[c] if c in rotation else position["xyz".index(c)] for c in self.coordinates]
         )
 
 

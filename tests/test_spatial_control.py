@@ -20,14 +20,18 @@ from pydrake.common.eigen_geometry import AngleAxis  # noqa: E402
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix  # noqa: E402
 from pydrake.multibody.parsing import Parser  # noqa: E402
 from pydrake.multibody.plant import MultibodyPlant  # noqa: E402
-from pydrake.multibody.tree import FixedOffsetFrame, JacobianWrtVariable  # noqa: E402
+from pydrake.multibody.tree import (  # noqa: E402
+    FixedOffsetFrame,
+    JacobianWrtVariable,
+    MultibodyForces,
+)
 from pydrake.systems.analysis import Simulator  # noqa: E402
 from pydrake.systems.framework import DiagramBuilder  # noqa: E402
 from pydrake.systems.primitives import ConstantVectorSource  # noqa: E402
 
 from admittance.diagrams.loop.point import AddPointKinematics, AddPointPid  # noqa: E402
 from admittance.diagrams.robots.description import ForcePoint  # noqa: E402
-from admittance.systems.cartesian_pid import PostureTask  # noqa: E402
+from admittance.systems.cartesian_pid import CartesianPid, PostureTask  # noqa: E402
 from admittance.systems.optimal_admittance import OptimalAdmittance  # noqa: E402
 from admittance.systems.spatial_kinematics import (  # noqa: E402
     SPATIAL_COORDINATES,
@@ -448,3 +452,69 @@ def test_the_admittance_law_runs_on_any_subset_of_six_axes(axes):
     expected[list(axes)] = 1e-5 * np.array([KP[a] for a in axes]) * errors * 0.1
     offset = block.reference_offset_output.Eval(context)
     np.testing.assert_allclose(offset, expected, rtol=1e-9, atol=1e-15)
+
+
+# --- the PID's joint-space terms, at one state ----------------------------------------------
+
+
+def _pid_torque(pid, plant, q, *, converted=False):
+    """The PID's torque at rest at q, commanded to where the tool is (zero error)."""
+    state = np.r_[q, np.zeros(plant.num_velocities())]
+    kinematics = _kinematics(SpatialKinematics(plant, frame_name=TOOL), state)
+    system = pid.ToAutoDiffXd() if converted else pid
+    context = system.CreateDefaultContext()
+    system.GetInputPort("kinematics").FixValue(context, kinematics)
+    system.GetInputPort("state").FixValue(
+        context, InitializeAutoDiff(state)[:, 0] if converted else state
+    )
+    system.GetInputPort("commanded_position").FixValue(context, kinematics[:6])
+    system.GetInputPort("commanded_velocity").FixValue(context, np.zeros(6))
+    torque = system.GetOutputPort("actuation").Eval(context)
+    return np.array([t.value() for t in torque]) if converted else torque
+
+
+def test_the_state_input_exists_only_with_gravity_compensation_or_a_posture(
+    panda_with_surface,
+):
+    arguments = dict(frame_name=TOOL, coordinates=SPATIAL_COORDINATES, kp=KP, kd=KD, ki=KI)
+    assert CartesianPid(panda_with_surface, **arguments).state_input is None
+    for extra in [dict(gravity_compensation=True), dict(posture=PostureTask(READY))]:
+        pid = CartesianPid(panda_with_surface, **arguments, **extra)
+        assert pid.state_input.size() == 18
+
+
+def test_at_zero_error_the_torque_is_the_static_holding_torque_plus_a_null_space_posture(
+    panda_with_surface,
+):
+    """At rest with zero error, F_PID = 0: tau = g(q) + N^T tau0. g(q) is checked against
+    Drake's inverse dynamics at rest, zero acceleration, under the plant's force elements
+    (gravity), and N^T tau0
+    against the definition of dynamic consistency: it accelerates no task coordinate,
+    J M^-1 N^T tau0 = 0, while tau0 itself would; up to the damping's leak, at most a
+    fraction eps / lambda_min(J M^-1 J^T) of tau0's (measured 2026-12-02: 1.0e-6, under
+    that bound of 3.9e-4)."""
+    plant = panda_with_surface
+    q = READY + np.r_[0.1, -0.2, 0.3, 0.1, -0.2, 0.1, 0.2, 0.0, 0.0]
+    arguments = dict(frame_name=TOOL, coordinates=SPATIAL_COORDINATES, kp=KP, kd=KD, ki=KI)
+    gravity_only = CartesianPid(plant, **arguments, gravity_compensation=True)
+    context, mass, jacobian, _ = _apparent_inertia(plant, q)
+    weight = MultibodyForces(plant)
+    plant.CalcForceElementsContribution(context, weight)  # gravity, a force element
+    holding = plant.CalcInverseDynamics(context, np.zeros(plant.num_velocities()), weight)
+    np.testing.assert_allclose(_pid_torque(gravity_only, plant, q), holding, atol=1e-9)
+    posture = PostureTask(READY, kp=10.0, kd=4.0)
+    pid = CartesianPid(plant, **arguments, gravity_compensation=True, posture=posture)
+    null_space = _pid_torque(pid, plant, q) - holding
+    rest = 10.0 * (READY - q)
+    task_acceleration = jacobian @ np.linalg.solve(mass, null_space)
+    unprojected = np.linalg.norm(jacobian @ np.linalg.solve(mass, rest))
+    # The damping eps = 1e-6 mean diag(A), A = J M^-1 J^T, leaks eps / lambda_min(A) of it.
+    inverse_inertia = jacobian @ np.linalg.solve(mass, jacobian.T)
+    leak = 1e-6 * np.trace(inverse_inertia) / 6 / np.linalg.eigvalsh(inverse_inertia)[0]
+    assert leak < 1e-3
+    ratio = np.linalg.norm(task_acceleration) / unprojected
+    assert ratio < leak, (ratio, leak)
+    assert np.linalg.norm(null_space) > 0.1  # and it is there
+    # Converted to AutoDiffXd (Linearize): the same torque.
+    converted = _pid_torque(pid, plant, q, converted=True)
+    np.testing.assert_allclose(converted, _pid_torque(pid, plant, q), atol=1e-9)
