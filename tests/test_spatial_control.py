@@ -518,3 +518,14 @@ def test_at_zero_error_the_torque_is_the_static_holding_torque_plus_a_null_space
     # Converted to AutoDiffXd (Linearize): the same torque.
     converted = _pid_torque(pid, plant, q, converted=True)
     np.testing.assert_allclose(converted, _pid_torque(pid, plant, q), atol=1e-9)
+    # Sampled (1 ms): the torque latched at a sample is the same law's.
+    sampled = CartesianPid(plant, **arguments, period=1e-3, gravity_compensation=True)
+    context = sampled.CreateDefaultContext()
+    state = np.r_[q, np.zeros(plant.num_velocities())]
+    kinematics = _kinematics(SpatialKinematics(plant, frame_name=TOOL), state)
+    sampled.kinematics_input.FixValue(context, kinematics)
+    sampled.state_input.FixValue(context, state)
+    sampled.commanded_position_input.FixValue(context, kinematics[:6])
+    sampled.commanded_velocity_input.FixValue(context, np.zeros(6))
+    held = sampled.EvalUniquePeriodicDiscreteUpdate(context).get_vector(1).CopyToVector()
+    np.testing.assert_allclose(held, holding, atol=1e-9)
