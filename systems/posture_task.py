@@ -117,9 +117,12 @@ class JointSpaceTorque:
         jacobian = np.asarray(jacobian)
         size = jacobian.shape[0]
         if state.dtype != object:  # one solve for M^-1 [J^T, tau0], one for Lambda
-            solved = np.linalg.solve(mass, np.column_stack((jacobian.T, rest)))
+            columns = np.empty((self._num_velocities, size + 1))
+            columns[:, :size] = jacobian.T
+            columns[:, size] = rest
+            solved = np.linalg.solve(mass, columns)
             inertia = jacobian @ solved[:, :size]  # J M^-1 J^T, the inverse of Lambda
-            inertia.flat[:: size + 1] += _RELATIVE_DAMPING * np.trace(inertia) / size
+            inertia.flat[:: size + 1] += _RELATIVE_DAMPING / size * inertia.trace()
             force = np.linalg.solve(inertia, jacobian @ solved[:, size])
         else:
             inverse_mass = inv(mass)

@@ -176,17 +176,18 @@ class SpatialFrameKinematics(PlanarFrameKinematics):
     angular velocity in E (``PlanarFrameKinematics.jacobian``).
     """
 
+    def __init__(self, plant, frame_name: str, **task) -> None:
+        super().__init__(plant, frame_name, **task)
+        # Where each coordinate is in (x, y, z, rx, ry, rz).
+        self._pose_indices = [SPATIAL_COORDINATES.index(c) for c in self.coordinates]
+
     def pose(self):
         """X at the last state set: position of F's origin and rotation vector of R_EF."""
         X_EF = self.plant.CalcRelativeTransform(self._context, self._world, self.frame)
         # Drake's quaternion of R_EF (its own Shepperd's method, in C++), then its log.
-        quaternion = X_EF.rotation().ToQuaternion()
-        vector = _quaternion_log(quaternion.w(), quaternion.x(), quaternion.y(), quaternion.z())
-        rotation = dict(zip(ROTATION_COORDINATES, vector, strict=True))
-        position = X_EF.translation()
-        return np.array(
-            [rotation[c] if c in rotation else position["xyz".index(c)] for c in self.coordinates]
-        )
+        w, x, y, z = X_EF.rotation().ToQuaternion().wxyz().tolist()
+        values = X_EF.translation().tolist() + _quaternion_log(w, x, y, z)
+        return np.array([values[i] for i in self._pose_indices])
 
 
 def frame_kinematics(plant, frame_name: str, *, coordinates, expressed_in: str = "world"):
