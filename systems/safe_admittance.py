@@ -82,8 +82,9 @@ Without a value on the ``collision`` input there is no reflex.
 **Beyond the stated bounds** (docs/safety.md, section 7). Above ``backoff_stiffness`` (a
 wall reported stiffer than stated) the command moves toward the wall at most at
 v_f = v_max (Fmax - Fr) / Fmax, in contact and in free motion. In contact, a wall that
-approaches faster than v_f (``wall_approach_speed``, systems/wall_motion_monitor.py) makes
-the command retreat at least at that speed. Without a value on that input, nothing.
+approaches faster than v_f (``wall_approach_speed``, systems/wall_motion_monitor.py) moves
+the command back at that speed on top of the law's rate. Without a value on that input,
+nothing.
 
 Push bound: y + P is kept below max_push by back-calculation (time constant 10 ms, as in
 systems/optimal_admittance.py), without a hard clamp of the output: a clamp would tie the
@@ -463,7 +464,7 @@ def SafeAdmittance_(T):
                 rate = T(0.0) if plan_speed <= 0.0 else -desired_speed
             if numbers["in_contact"]:
                 rate = self._retreat_from_approaching_wall(
-                    context, rate, desired_speed, numbers, _value(reference)
+                    context, rate, numbers, _value(reference)
                 )
             if collision:
                 # Stop, and back off the wall at v_max while in contact.
@@ -478,20 +479,18 @@ def SafeAdmittance_(T):
             output[self._axis] = offset
             value.set_value((np.array(output), np.array([rate, scale_rate]), numbers, proportional))
 
-        def _retreat_from_approaching_wall(self, context, rate, desired_speed, numbers, reference):
-            """dy/dt with the command retreating at least at v_hat, the wall's approach
-            speed (systems/wall_motion_monitor.py), when v_hat is above the speed the
-            layer guarantees, v_f = v_max (Fmax - Fr) / Fmax (docs/safety.md, section 7)."""
+        def _retreat_from_approaching_wall(self, context, rate, numbers, reference):
+            """dy/dt with the command moving back at v_hat, the wall's approach speed
+            (systems/wall_motion_monitor.py), on top of the law's own rate, when v_hat is
+            above the speed the layer guarantees, v_f = v_max (Fmax - Fr) / Fmax
+            (docs/safety.md, section 7): the law's integral then need not lag the wall."""
             if not self.wall_approach_speed_input.HasValue(context):
                 return rate
             speed = _value(self.wall_approach_speed_input.Eval(context)[0])
             guaranteed = _backed_off(
                 numbers["approach_speed"], math.inf, self._max_force, reference
             )[0]
-            retreat = -speed - desired_speed
-            if speed > guaranteed and _value(rate) > _value(retreat):
-                return retreat
-            return rate
+            return rate - speed if speed > guaranteed else rate
 
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
             derivatives.get_mutable_vector().SetFromVector(self._law_cache.Eval(context)[1])

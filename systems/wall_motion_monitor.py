@@ -17,13 +17,17 @@ is a lower bound on v_w: the monitor does not see a wall faster than it is. Samp
 sensor (period T): F' is the trusted reading's difference quotient over the last sample,
 x' the tip's speed along the normal at the sample. The evidence needs the force to rise by
 more than the reading's noise over the sample, 3 sqrt(2) sigma (a chance of 0.13 % per
-sample for Gaussian noise), and the tip not to advance; without it the output is 0. The
-retreat the law takes on it lowers the force, which ends the evidence: the monitor cannot
-drive the arm off a static wall.
+sample for Gaussian noise), and the tip not to advance; without it the output is 0. Once
+there is evidence it holds while the tip is pushed back (x' < 0), with v_hat computed as
+above whatever the sign of F': a wall that keeps approaching at the speed the tip already
+retreats at no longer raises the force, and must not lose its evidence for it. On a
+static wall a tip that retreats at x' lowers the force at Ke x', so the held v_hat is
+abs(x') (1 - Ke / k_hat): a retreat at v_hat shrinks by that factor each sample, and the
+hold ends once v_hat is 0 or the law no longer acts on it (v_hat <= v_f).
 
 The law (systems/safe_admittance.py) compares v_hat with the wall speed it can guarantee,
-v_f = v_max (Fmax - Fr) / Fmax (docs/safety.md, section 7), and retracts the command at
-v_hat above it.
+v_f = v_max (Fmax - Fr) / Fmax (docs/safety.md, section 7), and above it moves the command
+back at v_hat on top of its own rate.
 """
 
 from __future__ import annotations
@@ -60,16 +64,19 @@ def approach_evidence(
     *,
     period: float,
     noise_std: float,
+    last_speed: float = 0.0,
 ) -> float:
     """v_hat = (F[k] - F[k-1]) / (T k_hat) - x' (module docstring), m/s, or 0 without
-    evidence: no previous reading in contact (NaN), a rise within the noise, or a tip that
-    advances."""
+    evidence: no previous reading in contact (NaN), a tip that advances, or a rise within
+    the noise, unless the last sample had evidence (`last_speed` > 0) and the tip is still
+    pushed back (the hold: v_hat as above, whatever the force's sign of change)."""
     rise = force - last_force
-    if not math.isfinite(rise) or rise <= NOISE_DEVIATIONS * math.sqrt(2.0) * noise_std:
+    if not math.isfinite(rise) or tip_speed > 0.0:
         return 0.0
-    if tip_speed > 0.0:
+    held = last_speed > 0.0 and tip_speed < 0.0
+    if rise <= NOISE_DEVIATIONS * math.sqrt(2.0) * noise_std and not held:
         return 0.0
-    return rise / (period * stiffness_estimate) - tip_speed
+    return max(rise / (period * stiffness_estimate) - tip_speed, 0.0)
 
 
 @TemplateSystem.define("WallMotionMonitor_", T_list=[float, AutoDiffXd])
@@ -159,6 +166,7 @@ def WallMotionMonitor_(T):
 
         def _Update(self, context, discrete_state) -> None:
             last = _value(context.get_discrete_state(self._state_index)[_LAST_FORCE])
+            last_speed = _value(context.get_discrete_state(self._state_index)[_SPEED])
             force = _value(self.measured_force_input.Eval(context)[0])
             trusted = _value(self.sensor_fault_input.Eval(context)[0]) < 0.5
             if not (trusted and math.isfinite(force) and force >= self._contact_force):
@@ -177,6 +185,7 @@ def WallMotionMonitor_(T):
                     estimate,
                     period=self._period,
                     noise_std=self._noise,
+                    last_speed=last_speed,
                 )
                 new = [force, speed]
             discrete_state.get_mutable_vector(self._state_index).SetFromVector([T(x) for x in new])
