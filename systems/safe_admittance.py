@@ -79,6 +79,13 @@ Ke_max peaks at Fmax: a retreat that strikes something as stiff stays under Fmax
 PID keeps the arm at that command against the collision's torque; the damper c x' stays.
 Without a value on the ``collision`` input there is no reflex.
 
+**Beyond the stated bounds** (docs/safety.md, section 7). Above ``backoff_stiffness`` (a
+wall reported stiffer than stated) the command moves toward the wall at most at
+v_f = v_max (Fmax - Fr) / Fmax, in contact and in free motion. In contact, a wall that
+approaches faster than v_f (``wall_approach_speed``, systems/wall_motion_monitor.py) moves
+the command back at that speed on top of the law's rate. Without a value on that input,
+nothing.
+
 Push bound: y + P is kept below max_push by back-calculation (time constant 10 ms, as in
 systems/optimal_admittance.py), without a hard clamp of the output: a clamp would tie the
 command to Xd and let it approach at the plan's speed. y + P passes max_push by at most
@@ -112,6 +119,14 @@ def _value(x) -> float:
     return float(x) if isinstance(x, float | int) else float(x.value())
 
 
+def _backed_off(approach_speed, advance_speed, max_force, force_reference):
+    """The command's speeds toward the wall once it is reported stiffer than stated
+    (docs/safety.md, section 7): both at most v_f = v_max (Fmax - Fr) / Fmax, the speed
+    whose impact, on top of Fr, peaks at Fmax on a wall of the estimate's stiffness."""
+    follow = approach_speed * max(max_force - force_reference, 0.0) / max_force
+    return min(approach_speed, follow), min(advance_speed, follow)
+
+
 class SafetyNumbers(dict):
     """The derived numbers of the layer at one state (apparent mass, c, v_max, ...)."""
 
@@ -135,6 +150,7 @@ def SafeAdmittance_(T):
             - stiffness_estimate
             - sensor_fault
             - collision
+            - wall_approach_speed
             output_ports:
             - reference_offset
             - gain_scale
@@ -163,6 +179,7 @@ def SafeAdmittance_(T):
             payload_mass: float = 0.0,
             normal_axis: int = 0,
             num_axes: int = 3,
+            backoff_stiffness: float = math.inf,
             converter=None,
         ) -> None:
             """
@@ -186,6 +203,9 @@ def SafeAdmittance_(T):
                     (>= 0): added to the plant's M(q) as a point mass there.
                 normal_axis: the wall normal's index in X.
                 num_axes: size of Xr.
+                backoff_stiffness: above this estimate (a wall reported stiffer than
+                    stated) the command moves toward the wall at most at
+                    v_f = v_max (Fmax - Fr) / Fmax, in contact and in free motion, N/m.
             """
             LeafSystem_[T].__init__(self, converter=converter)
             positive = {
@@ -223,7 +243,9 @@ def SafeAdmittance_(T):
                 payload_mass=float(payload_mass),
                 normal_axis=int(normal_axis),
                 num_axes=int(num_axes),
+                backoff_stiffness=float(backoff_stiffness),
             )
+            self._backoff_stiffness = float(backoff_stiffness)
             self._gamma = float(gamma)
             self._alpha = float(alpha)
             self._stiffness = float(stiffness)
@@ -254,6 +276,7 @@ def SafeAdmittance_(T):
             self.stiffness_estimate_input = self.DeclareVectorInputPort("stiffness_estimate", 1)
             self.sensor_fault_input = self.DeclareVectorInputPort("sensor_fault", 1)
             self.collision_input = self.DeclareVectorInputPort("collision", 1)
+            self.wall_approach_speed_input = self.DeclareVectorInputPort("wall_approach_speed", 1)
             self.DeclareContinuousState(BasicVector_[T]([0.0, 1.0]))
             self._law_cache = self.DeclareCacheEntry(
                 description="reference offset and state rates",
@@ -331,6 +354,10 @@ def SafeAdmittance_(T):
             advance_speed = max(self._max_force - force_reference, 0.0) / (
                 self._kp * (self._alpha + self._detection_delay) * (1.0 + overshoot)
             )
+            if stiffness_estimate > self._backoff_stiffness:
+                approach_speed, advance_speed = _backed_off(
+                    approach_speed, advance_speed, self._max_force, force_reference
+                )
             critical = contact_model.critical_gamma(
                 stiffness_estimate,
                 mass=mass,
@@ -435,6 +462,10 @@ def SafeAdmittance_(T):
                 rate = rate - desired_speed
             if fault and _value(rate) > min(0.0, -plan_speed):
                 rate = T(0.0) if plan_speed <= 0.0 else -desired_speed
+            if numbers["in_contact"]:
+                rate = self._retreat_from_approaching_wall(
+                    context, rate, numbers, _value(reference)
+                )
             if collision:
                 # Stop, and back off the wall at v_max while in contact.
                 retract = numbers["approach_speed"] if numbers["in_contact"] else 0.0
@@ -447,6 +478,19 @@ def SafeAdmittance_(T):
             output = [T(0.0)] * self._num_axes
             output[self._axis] = offset
             value.set_value((np.array(output), np.array([rate, scale_rate]), numbers, proportional))
+
+        def _retreat_from_approaching_wall(self, context, rate, numbers, reference):
+            """dy/dt with the command moving back at v_hat, the wall's approach speed
+            (systems/wall_motion_monitor.py), on top of the law's own rate, when v_hat is
+            above the speed the layer guarantees, v_f = v_max (Fmax - Fr) / Fmax
+            (docs/safety.md, section 7): the law's integral then need not lag the wall."""
+            if not self.wall_approach_speed_input.HasValue(context):
+                return rate
+            speed = _value(self.wall_approach_speed_input.Eval(context)[0])
+            guaranteed = _backed_off(
+                numbers["approach_speed"], math.inf, self._max_force, reference
+            )[0]
+            return rate - speed if speed > guaranteed else rate
 
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
             derivatives.get_mutable_vector().SetFromVector(self._law_cache.Eval(context)[1])

@@ -55,8 +55,8 @@ MAX_RISE = 2.0
 LOADING_TIME = 0.5
 
 # Discrete state layout: ln k_hat, anchor position, anchor force, the contact's onset
-# time, anchored (0/1).
-_LOG_ESTIMATE, _ANCHOR_POSITION, _ANCHOR_FORCE, _ONSET, _ANCHORED = 0, 1, 2, 3, 4
+# time, anchored (0/1), ln of the highest estimate so far, in free motion (0/1).
+_LOG_ESTIMATE, _ANCHOR_POSITION, _ANCHOR_FORCE, _ONSET, _ANCHORED, _LOG_TOP, _FREE = range(7)
 
 
 def _positive(name: str, value: float) -> float:
@@ -79,6 +79,8 @@ def update_estimate(
     contact_force: float,
     informative_force: float,
     trusted: bool = True,
+    contact_start: float = -math.inf,
+    floor: float = -math.inf,
 ) -> tuple[float, tuple[float, float, float] | None]:
     """One sample of the estimator (module docstring): the new (ln k_hat, anchor).
 
@@ -86,13 +88,16 @@ def update_estimate(
         log_estimate: ln k_hat before the sample.
         anchor: (x_a, F_a, the contact's onset time), or None when there is none.
         position: x[k], m; force: F[k], N; time: t[k], s.
+        contact_start: the ln k_hat a contact starts from, at least: applied on the
+            sample that anchors a new contact (the caller passes it after free motion).
+        floor: the ln k_hat below which the estimate may not fall.
         contact_force: F_c; informative_force: dF_min, N.
         trusted: the reading may be used.
     """
     if not (trusted and math.isfinite(force)) or force < contact_force:
         return log_estimate, None
     if anchor is None:
-        return log_estimate, (position, force, time)
+        return max(log_estimate, contact_start), (position, force, time)
     onset = anchor[2]
     force_change = force - anchor[1]
     if abs(force_change) < informative_force:
@@ -105,6 +110,7 @@ def update_estimate(
             log_estimate += GAIN_UP * (limited - log_estimate)
         elif time - onset <= LOADING_TIME:
             log_estimate += GAIN_DOWN * (log_observed - log_estimate)
+            log_estimate = max(log_estimate, floor)
     return log_estimate, (position, force, onset)
 
 
@@ -137,6 +143,7 @@ def StiffnessEstimator_(T):
             informative_force: float,
             normal_axis: int = 0,
             frozen_estimate: float | None = None,
+            latch_stiffness: float = math.inf,
             converter=None,
         ) -> None:
             """
@@ -149,6 +156,8 @@ def StiffnessEstimator_(T):
                 informative_force: dF_min, N.
                 normal_axis: the wall normal's index in X = (x, y, theta).
                 frozen_estimate: None, or a constant estimate (N/m) for analysis.
+                latch_stiffness: once the estimate has been above it (a wall stiffer
+                    than stated), it never falls below the highest value it reached, N/m.
             """
             LeafSystem_[T].__init__(self, converter=converter)
             self._plant = plant
@@ -160,7 +169,11 @@ def StiffnessEstimator_(T):
                 informative_force=informative_force,
                 normal_axis=normal_axis,
                 frozen_estimate=frozen_estimate,
+                latch_stiffness=latch_stiffness,
             )
+            if not latch_stiffness > 0:
+                raise ValueError(f"latch_stiffness must be > 0, got {latch_stiffness}")
+            self._latch = math.log(latch_stiffness)
             self._period = _positive("period", period)
             self._prior = _positive("prior_stiffness", prior_stiffness)
             self._contact_force = _positive("contact_force", contact_force)
@@ -176,7 +189,7 @@ def StiffnessEstimator_(T):
             self.sensor_fault_input = self.DeclareVectorInputPort("sensor_fault", 1)
             if self._frozen is None:
                 self._state_index = self.DeclareDiscreteState(
-                    BasicVector_[T]([math.log(self._prior), 0.0, 0.0, 0.0, 0.0])
+                    BasicVector_[T](self._initial_state(self._prior))
                 )
                 self.DeclarePeriodicDiscreteUpdateEvent(
                     period_sec=self._period, offset_sec=0.0, update=self._Update
@@ -202,10 +215,15 @@ def StiffnessEstimator_(T):
             return self._contact_force
 
         def set_estimate(self, context, stiffness: float) -> None:
-            """Sets k_hat (N/m) and drops the anchor."""
-            context.get_mutable_discrete_state(self._state_index).SetFromVector(
-                [math.log(_positive("stiffness", stiffness)), 0.0, 0.0, 0.0, 0.0]
-            )
+            """Sets k_hat (N/m) and drops the anchor; the next contact starts from it."""
+            state = self._initial_state(_positive("stiffness", stiffness))
+            state[_FREE] = 0.0
+            context.get_mutable_discrete_state(self._state_index).SetFromVector(state)
+
+        def _initial_state(self, stiffness: float) -> list[float]:
+            log_stiffness = math.log(stiffness)
+            top = max(log_stiffness, math.log(self._prior))
+            return [log_stiffness, 0.0, 0.0, 0.0, 0.0, top, 1.0]
 
         def _CalcFrozen(self, context, output) -> None:
             output.SetFromVector([T(self._frozen)])
@@ -228,6 +246,10 @@ def StiffnessEstimator_(T):
                 if state[_ANCHORED]
                 else None
             )
+            # A new contact after free motion starts from the highest estimate so far (at
+            # least the prior): a fall belongs to the contact that showed it. Above the
+            # latch, the estimate keeps the highest value it reached.
+            top = state[_LOG_TOP]
             log_estimate, anchor = update_estimate(
                 state[_LOG_ESTIMATE],
                 anchor,
@@ -237,8 +259,19 @@ def StiffnessEstimator_(T):
                 contact_force=self._contact_force,
                 informative_force=self._informative_force,
                 trusted=trusted,
+                contact_start=top if state[_FREE] else -math.inf,
+                floor=top if top > self._latch else -math.inf,
             )
-            new = [log_estimate, *(anchor if anchor else (0.0, 0.0, 0.0)), float(bool(anchor))]
+            free = trusted and math.isfinite(force) and force < self._contact_force
+            if not (free or anchor):
+                free = bool(state[_FREE])  # an untrusted reading says nothing of contact
+            new = [
+                log_estimate,
+                *(anchor if anchor else (0.0, 0.0, 0.0)),
+                float(bool(anchor)),
+                max(top, log_estimate),
+                float(free),
+            ]
             discrete_state.get_mutable_vector(self._state_index).SetFromVector([T(x) for x in new])
 
     return Impl

@@ -117,13 +117,14 @@ def test_free_motion_and_untrusted_readings_drop_the_anchor():
         assert anchor is None and log_estimate == math.log(5e4)
 
 
-def _estimator(arm_plant):
+def _estimator(arm_plant, **extra):
     estimator = StiffnessEstimator(
         arm_plant,
         period=0.005,
         prior_stiffness=PRIOR,
         contact_force=CONTACT,
         informative_force=INFORMATIVE,
+        **extra,
     )
     context = estimator.CreateDefaultContext()
     estimator.sensor_fault_input.FixValue(context, [0.0])
@@ -263,3 +264,58 @@ def test_bad_arguments_name_the_argument(arm_plant, name, value):
     arguments[name] = value
     with pytest.raises(ValueError, match=f"{name} must be > 0"):
         StiffnessEstimator(arm_plant, **arguments)
+
+
+def test_a_new_contact_starts_from_the_contact_start_value_and_a_floor_holds():
+    """update_estimate by hand: the sample that anchors a new contact lifts ln k_hat to
+    contact_start (a fall from an earlier contact is not carried over), never lowers it;
+    a fall inside the loading stops at the floor."""
+    start = math.log(PRIOR)
+
+    def onset(log_estimate):
+        return update_estimate(
+            log_estimate,
+            None,
+            0.2,
+            2.0,
+            1.0,
+            contact_force=CONTACT,
+            informative_force=1.0,
+            contact_start=start,
+        )
+
+    assert onset(math.log(2e4)) == (start, (0.2, 2.0, 1.0))
+    assert onset(math.log(4e6))[0] == math.log(4e6)
+    # A secant of 1e4 from 3e6 would fall to 3e6 (1e4 / 3e6)^0.75 = 4.1e4: the floor
+    # ln 3e6 keeps it there.
+    floored, _ = update_estimate(
+        math.log(3e6),
+        (0.2, 2.0, 1.0),
+        0.2 + 2.0 / 1e4,
+        4.0,
+        1.1,
+        contact_force=CONTACT,
+        informative_force=1.0,
+        floor=math.log(3e6),
+    )
+    assert floored == math.log(3e6)
+
+
+def test_the_system_restarts_each_contact_at_the_prior_and_latches_above(arm_plant):
+    """A soft wall (5e4) loads from the prior; after free motion (0.1 N < F_c) the next
+    contact anchors at the prior again, 1e6, not at the soft wall's estimate. With a latch
+    at 2e6, an estimate set above it (3e6) keeps its value on the soft secants."""
+    estimator, context = _estimator(arm_plant)
+    seed = [-0.45, 1.66, 0.36]
+    for force in (0.6, 1.7, 2.8, 3.9, 5.0):
+        seed = _sample(arm_plant, estimator, context, force, seed)
+    assert estimator.stiffness_estimate_output.Eval(context)[0] < 6e4
+    seed = _sample(arm_plant, estimator, context, 0.1, seed)
+    seed = _sample(arm_plant, estimator, context, 0.6, seed)
+    assert estimator.stiffness_estimate_output.Eval(context)[0] == pytest.approx(PRIOR)
+
+    latched, context = _estimator(arm_plant, latch_stiffness=2e6)
+    latched.set_estimate(context, 3e6)
+    for force in (0.6, 1.7, 2.8, 3.9, 5.0):
+        seed = _sample(arm_plant, latched, context, force, seed)
+    assert latched.stiffness_estimate_output.Eval(context)[0] == pytest.approx(3e6)

@@ -28,6 +28,7 @@ from admittance.systems.flexiforce import FlexiForceSensor
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
 from admittance.systems.safe_admittance import SafeAdmittance
 from admittance.systems.stiffness_estimator import StiffnessEstimator
+from admittance.systems.wall_motion_monitor import WallMotionMonitor
 
 __all__ = [
     "SafetyLayer",
@@ -44,6 +45,7 @@ __all__ = [
     "safety_columns",
     "stiffer_than_stated",
     "safety_metrics",
+    "wall_approach_detections",
     "tip_speed",
 ]
 
@@ -92,6 +94,8 @@ class SafetyLayer:
     detector: SensorFaultDetector
     estimator: StiffnessEstimator
     observer: ContactForceObserver
+    # None in an analysis diagram (sampled: an equilibrium has no moving wall).
+    wall_monitor: WallMotionMonitor | None = None
 
     # The force controller's ports (diagrams/loop/point.py): the reading goes to
     # the detector, Fr and Xd to the law, Xr comes out of the law.
@@ -113,7 +117,7 @@ class SafetyLayer:
 
     def log_ports(self) -> dict:
         """The layer's signals worth logging, by name."""
-        return {
+        ports = {
             "fault_flags": self.detector.fault_flags_output,
             "collision": self.detector.collision_output,
             "trusted_force": self.detector.trusted_force_output,
@@ -121,6 +125,9 @@ class SafetyLayer:
             "stiffness_estimate": self.estimator.stiffness_estimate_output,
             "gain_scale": self.law.gain_scale_output,
         }
+        if self.wall_monitor is not None:
+            ports["wall_approach_speed"] = self.wall_monitor.wall_approach_speed_output
+        return ports
 
     def initialize(self, root_context: Context) -> None:
         """At a run's start: the monitor holds the first reading, the reference is at the
@@ -191,6 +198,7 @@ def AddSafetyLayer(
             informative_force=INFORMATIVE_SHARE * reference,
             normal_axis=NORMAL_AXIS,
             frozen_estimate=scenario.wall.stiffness if analysis else None,
+            latch_stiffness=STIFFER_FACTOR * safety.max_stiffness,
         )
     )
     estimator.set_name("stiffness_estimator")
@@ -234,6 +242,7 @@ def AddSafetyLayer(
             payload_mass=safety.payload_mass,
             normal_axis=NORMAL_AXIS,
             num_axes=3,
+            backoff_stiffness=STIFFER_FACTOR * safety.max_stiffness,
         )
     )
     law.set_name("safe_admittance")
@@ -254,7 +263,36 @@ def AddSafetyLayer(
     builder.Connect(estimator.stiffness_estimate_output, law.stiffness_estimate_input)
     builder.Connect(state, law.estimated_state_input)
     builder.Connect(trajectory.desired_velocity_output, law.desired_velocity_input)
-    return SafetyLayer(law=law, detector=detector, estimator=estimator, observer=observer)
+    monitor = (
+        None
+        if analysis
+        else _AddWallMotionMonitor(builder, scenario, plant, law, detector, estimator)
+    )
+    return SafetyLayer(
+        law=law, detector=detector, estimator=estimator, observer=observer, wall_monitor=monitor
+    )
+
+
+def _AddWallMotionMonitor(builder, scenario, plant, law, detector, estimator) -> WallMotionMonitor:
+    """The approaching wall's monitor, wired from the trusted reading and the estimate to
+    the law (docs/safety.md, section 7)."""
+    monitor = builder.AddSystem(
+        WallMotionMonitor(
+            plant,
+            frame_name=scenario.arm.fingertip_frame,
+            period=scenario.sensor.noise_period,
+            noise_std=expected_noise(scenario),
+            contact_force=contact_force_threshold(scenario),
+            normal_axis=NORMAL_AXIS,
+        )
+    )
+    monitor.set_name("wall_motion_monitor")
+    builder.Connect(detector.trusted_force_output, monitor.measured_force_input)
+    builder.Connect(detector.sensor_fault_output, monitor.sensor_fault_input)
+    builder.Connect(plant.get_state_output_port(), monitor.estimated_state_input)
+    builder.Connect(estimator.stiffness_estimate_output, monitor.stiffness_estimate_input)
+    builder.Connect(monitor.wall_approach_speed_output, law.wall_approach_speed_input)
+    return monitor
 
 
 def CapStepForSampledMonitor(scenario: Scenario, simulator) -> None:
@@ -351,6 +389,11 @@ def safety_metrics(result) -> dict:
     time = logs["time"]
     metrics = {key: value for key, value in logs["numbers"].items() if key != "in_contact"}
     metrics["detections"] = _rising_edges(time, np.hstack([logs["fault_flags"], logs["collision"]]))
+    if "wall_approach_speed" in logs:
+        metrics["detections"] = sorted(
+            metrics["detections"] + wall_approach_detections(time, logs, result.scenario),
+            key=lambda d: d["time"],
+        )
     metrics["final_stiffness_estimate"] = float(logs["stiffness_estimate"][-1, 0])
     metrics["stiffer_than_stated"] = stiffer_than_stated(
         time, logs["stiffness_estimate"][:, 0], result.scenario.safety.max_stiffness
@@ -360,6 +403,21 @@ def safety_metrics(result) -> dict:
     metrics["reach_limited_time"] = logs.get("reach_limited_time")
     metrics["reach_limited"] = metrics["reach_limited_time"] is not None
     return metrics
+
+
+def wall_approach_detections(time, logs, scenario: Scenario) -> list[dict]:
+    """Each time the wall's approach speed v_hat (systems/wall_motion_monitor.py) rises
+    above v_f = v_max (Fmax - Fr) / Fmax at the run's start: {"time", "kind":
+    "wall_approaching", "speed": v_hat}."""
+    max_force = scenario.admittance.max_force
+    follow = logs["numbers"]["approach_speed"] * (max_force - scenario.force_reference) / max_force
+    speed = np.asarray(logs["wall_approach_speed"])[:, 0]
+    on = speed > follow
+    starts = np.nonzero(on & ~np.concatenate([[False], on[:-1]]))[0]
+    return [
+        {"time": float(time[i]), "kind": "wall_approaching", "speed": float(speed[i])}
+        for i in starts
+    ]
 
 
 def stiffer_than_stated(time, estimate, max_stiffness: float) -> dict | None:
@@ -376,6 +434,8 @@ def stiffer_than_stated(time, estimate, max_stiffness: float) -> dict | None:
 def fault_detection(detections: list[dict], start: float, end: float) -> dict:
     """The first detection during [start, end] of an injected fault: time, kind, delay."""
     for detection in detections:
+        if detection["kind"] == "wall_approaching":
+            continue  # the wall's motion, not the sensor's
         if start <= detection["time"] <= end + math.ulp(end):
             return {
                 "detected_time": detection["time"],

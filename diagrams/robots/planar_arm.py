@@ -41,6 +41,7 @@ def AddPlanarArm(
     fingertip_frame: str = "fingertip",
     reflected_inertia: bool = False,
     payload_mass: float = 0.0,
+    motor_damping: float = 0.0,
 ):
     """Adds the arm of the URDF file `urdf` as a continuous MultibodyPlant, gravity along -y.
 
@@ -51,6 +52,8 @@ def AddPlanarArm(
             ``drake:gear_ratio``); False zeroes it, the paper's rigid-body model.
         payload_mass: a point mass welded at the fingertip frame, kg (0 = none): a tool or
             a grasped part the URDF does not carry.
+        motor_damping: viscous friction at each motor shaft, N m s/rad: joint i gets
+            N_i^2 times it as its damping (N_i the actuator's gear ratio in the URDF).
 
     Returns:
         (plant, scene_graph), the plant finalized.
@@ -61,16 +64,28 @@ def AddPlanarArm(
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
     plant.set_name("plant")
     scene_graph.set_name("scene_graph")
-    _load_arm(plant, urdf, fingertip_frame, reflected_inertia, payload_mass)
+    _load_arm(plant, urdf, fingertip_frame, reflected_inertia, payload_mass, motor_damping)
     return plant, scene_graph
 
 
-def _load_arm(plant, urdf, fingertip_frame: str, reflected_inertia: bool, payload_mass: float):
+def _load_arm(
+    plant,
+    urdf,
+    fingertip_frame: str,
+    reflected_inertia: bool,
+    payload_mass: float,
+    motor_damping: float = 0.0,
+):
     (model,) = Parser(plant).AddModels(str(urdf))
     plant.mutable_gravity_field().set_gravity_vector(GRAVITY_W)
-    if not reflected_inertia:
-        for index in plant.GetJointActuatorIndices():
-            plant.get_mutable_joint_actuator(index).set_default_rotor_inertia(0.0)
+    for index in plant.GetJointActuatorIndices():
+        actuator = plant.get_mutable_joint_actuator(index)
+        if not reflected_inertia:
+            actuator.set_default_rotor_inertia(0.0)
+        if motor_damping > 0.0:
+            # The motor's viscous friction seen at the joint through the gearhead.
+            ratio = actuator.default_gear_ratio()
+            actuator.joint().set_default_damping(ratio**2 * motor_damping)
     if not plant.HasFrameNamed(fingertip_frame):
         raise ScenarioError(f"arm.fingertip_frame: the URDF has no frame named '{fingertip_frame}'")
     if payload_mass > 0.0:
@@ -99,6 +114,7 @@ def AddScenarioArm(builder: DiagramBuilder, arm: ArmConfig):
         fingertip_frame=arm.fingertip_frame,
         reflected_inertia=arm.reflected_inertia,
         payload_mass=arm.payload_mass,
+        motor_damping=arm.motor_damping,
     )
 
 

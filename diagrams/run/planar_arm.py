@@ -244,6 +244,13 @@ def _add_safety_metrics(metrics: dict, result: SimulationResult) -> None:
     metrics["safety_detections"] = len(metrics["safety"]["detections"])
     metrics["safety_final_stiffness_estimate"] = metrics["safety"]["final_stiffness_estimate"]
     metrics["safety_reach_limited"] = metrics["safety"]["reach_limited"]
+    stiffer = metrics["safety"]["stiffer_than_stated"]
+    if stiffer is not None:
+        # What the layer held after it backed off (docs/safety.md, section 7).
+        after = result.time >= stiffer["time"]
+        contact = in_contact(result.force[after], result.scenario.force_reference)
+        stiffer["peak_force_after"] = float(np.max(result.force[after]))
+        stiffer["contact_losses_after"] = int(contact_loss_indices(contact).size)
 
 
 def settling_columns(metrics: dict) -> dict[str, float | None]:

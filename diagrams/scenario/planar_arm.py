@@ -177,6 +177,10 @@ class ArmConfig:
     # not carry. The simulated arm has it; the safety layer's model of the arm does not
     # (safety.payload_mass is what the layer is told).
     payload_mass: float = 0.0
+    # Viscous friction of each motor, N m s/rad at the motor shaft: joint i gets N_i^2 times
+    # it (N_i its gear ratio in the URDF), as Drake joint damping. 0 = none (the paper's
+    # model); docs/safety.md section 3 states a value for the URDF's motors and gearheads.
+    motor_damping: float = 0.0
     # Joint-space seed that picks the elbow branch of the initial inverse kinematics, rad.
     joint_guess: list[float] = field(default_factory=lambda: [-0.45, 1.66, 0.36])
     # Initial fingertip pose (x m, y m, theta rad); empty = Xd(0). The arm starts at rest.
