@@ -98,9 +98,26 @@ def _weld_mount(plant, weld_joint: str) -> dict:
     )
 
 
-def _rotation(pose, R_BF):
-    """R_WF = R_WB R_BF as a 3x3 array (float or object)."""
-    return pose.rotation().matrix() @ np.asarray(R_BF)
+# Small 3-vector arithmetic on lists: the same code for floats and AutoDiffXd, and about
+# ten times faster than numpy's on 3-vectors (np.cross alone costs tens of us).
+def _cross(a, b) -> list:
+    """a x b."""
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def _rotate(R, v) -> list:
+    """R v, R as three rows."""
+    return [r[0] * v[0] + r[1] * v[1] + r[2] * v[2] for r in R]
+
+
+def _unrotate(R, v) -> list:
+    """R^T v, R as three rows."""
+    return [R[0][i] * v[0] + R[1][i] * v[1] + R[2][i] * v[2] for i in range(3)]
+
+
+def _rows(pose) -> list:
+    """R_WB of a body pose X_WB as three rows."""
+    return pose.rotation().matrix().tolist()
 
 
 @TemplateSystem.define("WrenchSensor_", T_list=[float, AutoDiffXd])
@@ -207,14 +224,14 @@ def WrenchSensor_(T):
             )
             self._joint = mount["joint_index"]
             self._body = mount["body_index"]
-            self._R_BS = np.asarray(mount["R_BS"])
+            self._R_BS = mount["R_BS"]
             # The tool's weight m g_W (N) and its centre of mass c (m, in S).
-            self._weight_W = self._arguments["tool_mass"] * np.asarray(mount["gravity"])
-            self._com = np.asarray(self._arguments["tool_com"])
-            self._bias = np.asarray(self._arguments["bias"])
-            self._sigma = np.array(
-                [self._arguments["force_noise_std"]] * 3 + [self._arguments["torque_noise_std"]] * 3
-            )
+            self._weight_W = [self._arguments["tool_mass"] * g for g in mount["gravity"]]
+            self._com = self._arguments["tool_com"]
+            self._bias = self._arguments["bias"]
+            self._sigma = [self._arguments["force_noise_std"]] * 3 + [
+                self._arguments["torque_noise_std"]
+            ] * 3
             self._tau = 1.0 / (2.0 * math.pi * cutoff) if cutoff > 0 else 0.0
             self._period = h
             # Fraction of the state left after one period (0: a plain zero-order hold).
@@ -253,50 +270,62 @@ def WrenchSensor_(T):
             Impl._construct(self, **other._arguments, converter=converter)
 
         # ----------------------------------------------------------------- calcs
-        def true_wrench(self, context) -> np.ndarray:
+        def true_wrench(self, context) -> list:
             """w: the wrench of the tool on the sensor, about S, in S (no bias, noise,
             filter), from the plant's reaction force at the weld."""
             F = self.reaction_forces_input.Eval(context)[self._joint]
-            return -np.concatenate([F.translational(), F.rotational()])
+            return [-x for x in F.translational().tolist() + F.rotational().tolist()]
 
-        def weight_wrench(self, context) -> np.ndarray:
+        def weight_wrench(self, context) -> list:
             """[m g_S; c x m g_S]: the tool's weight and its moment about S, in S."""
             pose = self.body_poses_input.Eval(context)[self._body]
-            weight_S = _rotation(pose, self._R_BS).T @ self._weight_W
-            return np.concatenate([weight_S, np.cross(self._com, weight_S)])
+            weight_S = _unrotate(self._R_BS, _unrotate(_rows(pose), self._weight_W))
+            return weight_S + _cross(self._com, weight_S)
 
-        def _filtered(self, context) -> np.ndarray:
+        def _filtered(self, context) -> list:
             """x: the filter's (or the hold's) state, or w when there is neither."""
             if self._period > 0:
-                return context.get_discrete_state(self._state).value()
+                return context.get_discrete_state(self._state).value().tolist()
             if self._tau > 0:
-                return context.get_continuous_state_vector().CopyToVector()
+                return context.get_continuous_state_vector().CopyToVector().tolist()
             return self.true_wrench(context)
 
-        def _reading(self, context) -> np.ndarray:
-            noise = self.noise_input.Eval(context)
-            return self._filtered(context) + self._bias + self._sigma * noise
+        def _reading(self, context) -> list:
+            noise = self.noise_input.Eval(context).tolist()
+            return [
+                x + b + s * n
+                for x, b, s, n in zip(
+                    self._filtered(context), self._bias, self._sigma, noise, strict=True
+                )
+            ]
 
         def _calc_wrench(self, context, output) -> None:
             output.SetFromVector(self._reading(context))
 
         def _calc_compensated(self, context, output) -> None:
-            output.SetFromVector(self._reading(context) - self.weight_wrench(context))
+            weight = self.weight_wrench(context)
+            output.SetFromVector(
+                [x - w for x, w in zip(self._reading(context), weight, strict=True)]
+            )
 
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
             """dx/dt = (w - x) / tau (only the continuous filter has a state)."""
             if self._period > 0 or self._tau == 0:
                 return
-            state = context.get_continuous_state_vector().CopyToVector()
-            rate = (self.true_wrench(context) - state) * (1.0 / self._tau)
-            derivatives.get_mutable_vector().SetFromVector(rate)
+            state = context.get_continuous_state_vector().CopyToVector().tolist()
+            rate = 1.0 / self._tau
+            derivatives.get_mutable_vector().SetFromVector(
+                [(w - x) * rate for w, x in zip(self.true_wrench(context), state, strict=True)]
+            )
 
         def _sample(self, context, discrete_state) -> None:
             """x[k+1] = w[k] + (x[k] - w[k]) exp(-h / tau)."""
-            wrench = self.true_wrench(context)
-            state = context.get_discrete_state(self._state).value()
+            state = context.get_discrete_state(self._state).value().tolist()
             discrete_state.get_mutable_vector(self._state).SetFromVector(
-                wrench + (state - wrench) * self._decay
+                [
+                    w + (x - w) * self._decay
+                    for w, x in zip(self.true_wrench(context), state, strict=True)
+                ]
             )
 
         def InitializeReading(self, context) -> None:
@@ -321,7 +350,7 @@ def WrenchSensor_(T):
         @property
         def noise_std(self) -> np.ndarray:
             """The noise std on each axis, [N x3, N m x3]."""
-            return self._sigma.copy()
+            return np.array(self._sigma)
 
     return Impl
 
@@ -406,7 +435,7 @@ def WrenchInControlFrame_(T):
                 frames=frames,
             )
             self._S, self._E = frames["S"], frames["E"]
-            self._offset = np.asarray(self._arguments["contact_offset"])
+            self._offset = self._arguments["contact_offset"]
             self._axes = selected
             self.wrench_input = self.DeclareVectorInputPort("wrench", 6)
             self.body_poses_input = self.DeclareAbstractInputPort(
@@ -425,19 +454,23 @@ def WrenchInControlFrame_(T):
         def _construct_copy(self, other, converter=None) -> None:
             Impl._construct(self, **other._arguments, converter=converter)
 
-        def wrench_on_surface(self, context) -> np.ndarray:
+        def wrench_on_surface(self, context) -> list:
             """All six components, -[R_ES f; R_ES tau_P], before the selection."""
-            wrench = self.wrench_input.Eval(context)
+            wrench = self.wrench_input.Eval(context).tolist()
             poses = self.body_poses_input.Eval(context)
-            R_WS = _rotation(poses[self._S[0]], self._S[1])
-            R_WE = _rotation(poses[self._E[0]], self._E[1])
-            R_ES = R_WE.T @ R_WS
-            force, moment = wrench[:3], wrench[3:]
-            moment_P = moment - np.cross(self._offset, force)
-            return -np.concatenate([R_ES @ force, R_ES @ moment_P])
+            force = wrench[:3]
+            moment_P = [t - s for t, s in zip(wrench[3:], _cross(self._offset, force), strict=True)]
+            (body_S, R_BS), (body_E, R_BE) = self._S, self._E
+            R_WBs, R_WBe = _rows(poses[body_S]), _rows(poses[body_E])
+            pushed = []
+            for vector in (force, moment_P):  # v_E = R_BE^T R_WBe^T R_WBs R_BS v_S
+                in_W = _rotate(R_WBs, _rotate(R_BS, vector))
+                pushed += [-x for x in _unrotate(R_BE, _unrotate(R_WBe, in_W))]
+            return pushed
 
         def _calc_force(self, context, output) -> None:
-            output.SetFromVector(self.wrench_on_surface(context)[self._axes])
+            wrench = self.wrench_on_surface(context)
+            output.SetFromVector([wrench[axis] for axis in self._axes])
 
         @property
         def axes(self) -> list[int]:
