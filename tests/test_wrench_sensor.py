@@ -86,10 +86,12 @@ BASES = {
 }
 
 
-def _add_panda_with_tool(builder, X_W0):
-    """The fixed-joint Panda welded at X_W0 with the tool on ``ft_weld``, and the frame E."""
+def _add_panda_with_tool(builder, X_W0, *, held=True):
+    """The Panda welded at X_W0 with the tool on ``ft_weld``, and the frame E; `held`
+    makes every joint fixed (the arm held still at q = 0)."""
     text = (PANDA / "urdf" / "panda.urdf").read_text()
-    text = re.sub(r'type="(revolute|prismatic)"', 'type="fixed"', text)
+    if held:
+        text = re.sub(r'type="(revolute|prismatic)"', 'type="fixed"', text)
     text = re.sub(r"<(safety_controller|mimic)[^>]*/>", "", text)
     plant = builder.AddSystem(MultibodyPlant(0.0))  # no SceneGraph: no meshes needed
     parser = Parser(plant)
@@ -184,6 +186,31 @@ def test_surface_wrench_in_sensor_and_control_frame(base):
     force = _eval(frame, frame.force_output, context)
     np.testing.assert_allclose(force, PUSH_E, rtol=1e-9, atol=1e-9)
     assert force[2] > 9.99  # pushing the table reads positive along its inward normal
+
+
+def test_inertial_force_is_not_compensated():
+    """The arm let go (no torque, at rest) falls: the tool's centre of mass accelerates at
+    a, the weld carries m (a - g), and the compensated reading is the inertial force
+    -m a in S (Newton's second law for the tool; a from the plant's forward dynamics)."""
+    builder = DiagramBuilder()
+    plant, tool = _add_panda_with_tool(builder, BASES["upright"], held=False)
+    sensor = builder.AddSystem(WrenchSensor(plant, "ft_weld", tool_mass=MASS, tool_com=C_S))
+    builder.Connect(plant.get_reaction_forces_output_port(), sensor.reaction_forces_input)
+    builder.Connect(plant.get_body_poses_output_port(), sensor.body_poses_input)
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    plant_context = plant.GetMyMutableContextFromRoot(context)
+    plant.get_actuation_input_port().FixValue(plant_context, np.zeros(plant.num_actuators()))
+    plant.SetPositions(plant_context, [0.0, -0.5, 0.0, -2.0, 0.0, 1.5, 0.7, 0.02, 0.02])
+    sensor_context = sensor.GetMyMutableContextFromRoot(context)
+    sensor.noise_input.FixValue(sensor_context, np.zeros(6))
+    A_WB = plant.EvalBodySpatialAccelerationInWorld(plant_context, tool)
+    X_WB = plant.EvalBodyPoseInWorld(plant_context, tool)
+    a_W = A_WB.translational() + np.cross(A_WB.rotational(), X_WB.rotation().multiply(C_B))
+    R_SW = X_WB.rotation().multiply(X_BS.rotation()).inverse()
+    compensated = sensor.compensated_wrench_output.Eval(sensor_context)
+    assert np.linalg.norm(a_W) > 1.0  # m/s^2: a real fall, not a rounding error
+    np.testing.assert_allclose(compensated[:3], -MASS * R_SW.multiply(a_W), rtol=1e-9, atol=1e-9)
 
 
 def test_bias_adds_exactly():
