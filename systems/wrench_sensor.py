@@ -43,7 +43,6 @@ __all__ = [
     "WrenchInControlFrame_",
     "WrenchSensor",
     "WrenchSensor_",
-    "sensor_frame_in_body",
 ]
 
 #: The names of the six components of a wrench, in the order of every 6-vector here.
@@ -66,7 +65,7 @@ def _nonnegative(name: str, value: float, unit: str) -> float:
     return number
 
 
-def sensor_frame_in_body(plant, frame_name: str) -> tuple[int, list[list[float]], list[float]]:
+def _frame_in_body(plant, frame_name: str) -> tuple[int, list[list[float]], list[float]]:
     """(body index, R_BF rows, p_BF) of a plant frame F on its body B; "world" is the world
     frame. Used to read F's pose from the plant's body poses."""
     frame = plant.world_frame() if frame_name == "world" else plant.GetFrameByName(frame_name)
@@ -87,7 +86,7 @@ def _weld_mount(plant, weld_joint: str) -> dict:
         raise ValueError(
             f"weld_joint: {weld_joint!r} is a {joint.type_name()} joint; a weld is needed"
         )
-    body, R_BS, p_BS = sensor_frame_in_body(plant, joint.frame_on_child().name())
+    body, R_BS, p_BS = _frame_in_body(plant, joint.frame_on_child().name())
     if int(joint.frame_on_child().body().index()) != body:  # a name shared by two frames
         raise ValueError(f"weld_joint: the frame of {weld_joint!r} on its child is ambiguous")
     return dict(
@@ -139,7 +138,9 @@ def WrenchSensor_(T):
 
         The low-pass is the sensor's own (its electronics), so bias and noise enter after
         it and the compensation (a controller's step, as in ros2's admittance_controller)
-        acts on the reading. The readout period h holds the reading between samples; with
+        acts on the reading. The readout period h holds both readings between samples
+        (each computed at the sample t_k, with the noise sample and the orientation then,
+        and output from the discrete state: nothing is evaluated between samples); with
         f_c = 0 it is a zero-order hold, ``x[k+1] = w[k]``. With neither filter nor period
         the reading feeds through from ``reaction_forces``: on a continuous plant those
         depend on the actuation, so a loop closed through them is algebraic (Drake says
@@ -246,12 +247,19 @@ def WrenchSensor_(T):
             )
             self.noise_input = self.DeclareVectorInputPort("noise", 6)
             if h > 0:
+                # The filter x, and the two readings held from the last sample.
                 self._state = self.DeclareDiscreteState(6)
+                self._held = self.DeclareDiscreteState(6)
+                self._held_compensated = self.DeclareDiscreteState(6)
                 self.DeclarePeriodicDiscreteUpdateEvent(
                     period_sec=h, offset_sec=0.0, update=self._sample
                 )
-                reading = {self.xd_ticket()}
-            elif cutoff > 0:
+                self.wrench_output = self.DeclareStateOutputPort("wrench", self._held)
+                self.compensated_wrench_output = self.DeclareStateOutputPort(
+                    "compensated_wrench", self._held_compensated
+                )
+                return
+            if cutoff > 0:
                 self.DeclareContinuousState(BasicVector_[T]([0.0] * 6))
                 reading = {self.xc_ticket()}
             else:
@@ -284,20 +292,19 @@ def WrenchSensor_(T):
             return weight_S + _cross(self._com, weight_S)
 
         def _filtered(self, context) -> list:
-            """x: the filter's (or the hold's) state, or w when there is neither."""
-            if self._period > 0:
-                return context.get_discrete_state(self._state).value().tolist()
+            """x: the continuous filter's state, or w without it (no period)."""
             if self._tau > 0:
                 return context.get_continuous_state_vector().CopyToVector().tolist()
             return self.true_wrench(context)
 
-        def _reading(self, context) -> list:
+        def _reading(self, context, filtered=None) -> list:
+            """x + b + sigma n, x the filtered wrench (by default the live one)."""
             noise = self.noise_input.Eval(context).tolist()
+            if filtered is None:
+                filtered = self._filtered(context)
             return [
                 x + b + s * n
-                for x, b, s, n in zip(
-                    self._filtered(context), self._bias, self._sigma, noise, strict=True
-                )
+                for x, b, s, n in zip(filtered, self._bias, self._sigma, noise, strict=True)
             ]
 
         def _calc_wrench(self, context, output) -> None:
@@ -320,20 +327,31 @@ def WrenchSensor_(T):
             )
 
         def _sample(self, context, discrete_state) -> None:
-            """x[k+1] = w[k] + (x[k] - w[k]) exp(-h / tau)."""
+            """x[k+1] = w[k] + (x[k] - w[k]) exp(-h / tau), and the readings of x[k+1]
+            held until the next sample (the noise sample and the orientation of t_k)."""
             state = context.get_discrete_state(self._state).value().tolist()
-            discrete_state.get_mutable_vector(self._state).SetFromVector(
-                [
-                    w + (x - w) * self._decay
-                    for w, x in zip(self.true_wrench(context), state, strict=True)
-                ]
-            )
+            wrench = self.true_wrench(context)
+            filtered = [w + (x - w) * self._decay for w, x in zip(wrench, state, strict=True)]
+            self._hold(context, discrete_state, filtered)
+
+        def _hold(self, context, discrete_state, filtered) -> None:
+            """Writes x, its reading and the compensated reading into the discrete state."""
+            reading = self._reading(context, filtered)
+            weight = self.weight_wrench(context)
+            compensated = [r - w for r, w in zip(reading, weight, strict=True)]
+            for index, value in (
+                (self._state, filtered),
+                (self._held, reading),
+                (self._held_compensated, compensated),
+            ):
+                discrete_state.get_mutable_vector(index).SetFromVector(value)
 
         def InitializeReading(self, context) -> None:
             """Sets the filter's (or hold's) state to the true wrench now: a sensor that
             has settled on the initial load (the plant's state must be set first)."""
             if self._period > 0:
-                context.SetDiscreteState(self._state, self.true_wrench(context))
+                state = context.get_mutable_discrete_state()
+                self._hold(context, state, self.true_wrench(context))
             elif self._tau > 0:
                 context.SetContinuousState(self.true_wrench(context))
 
@@ -421,7 +439,7 @@ def WrenchInControlFrame_(T):
                 mount = _weld_mount(plant, weld_joint)
                 if control_frame != "world" and not plant.HasFrameNamed(control_frame):
                     raise ValueError(f"control_frame: the plant has no frame {control_frame!r}")
-                body_E, R_BE, _ = sensor_frame_in_body(plant, control_frame)
+                body_E, R_BE, _ = _frame_in_body(plant, control_frame)
                 frames = dict(S=(mount["body_index"], mount["R_BS"]), E=(body_E, R_BE))
             selected = [int(a) for a in axes]
             if (

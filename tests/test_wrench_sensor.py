@@ -277,11 +277,14 @@ def test_period_holds_the_reading_between_samples():
             np.testing.assert_allclose(raw, held, rtol=1e-12, atol=1e-12)
 
 
-def test_initialize_reading_starts_settled():
-    diagram, context, sensor, _ = _rig("tilted", filter_cutoff_hz=10.0)
+@pytest.mark.parametrize("period", [0.0, 0.01])
+def test_initialize_reading_starts_settled(period):
+    diagram, context, sensor, _ = _rig("tilted", filter_cutoff_hz=10.0, period=period)
     sensor.InitializeReading(sensor.GetMyMutableContextFromRoot(context))
     raw = _eval(sensor, sensor.wrench_output, context)
     np.testing.assert_allclose(raw, _weight_in_S("tilted"), rtol=1e-9, atol=1e-12)
+    compensated = _eval(sensor, sensor.compensated_wrench_output, context)
+    np.testing.assert_allclose(compensated, 0.0, atol=1e-9)
 
 
 def test_autodiff_reads_as_float():
@@ -320,6 +323,19 @@ def test_add_sensor_chain_wires_the_wrist_sensor():
     )
     reading = AddSensorChain(builder, point, None, plant=plant)
     assert reading.random_sources == []  # no noise std: a zero source
+    noisy = ForcePoint(
+        name="noisy",
+        frame="ft_sensor",
+        coordinates=point.coordinates,
+        expressed_in="surface",
+        force_axes=(2,),
+        sensor=SensorChain(kind="wrench", weld_joint="ft_weld", noise_std=0.1, period=0.002),
+    )
+    (source,) = AddSensorChain(builder, noisy, None, plant=plant).random_sources
+    assert source.get_output_port(0).size() == 6
+    noisy.name = "quiet"
+    quiet = AddSensorChain(builder, noisy, None, plant=plant, noise=False)  # for analysis
+    assert quiet.random_sources == []
     diagram = builder.Build()
     context = diagram.CreateDefaultContext()
     force = reading.measured_force_output.Eval(reading.control_frame.GetMyContextFromRoot(context))
