@@ -43,6 +43,7 @@ __all__ = [
     "WrenchInControlFrame_",
     "WrenchSensor",
     "WrenchSensor_",
+    "carried_mass_and_com",
 ]
 
 #: The names of the six components of a wrench, in the order of every 6-vector here.
@@ -65,20 +66,14 @@ def _nonnegative(name: str, value: float, unit: str) -> float:
     return number
 
 
-def _frame_in_body(plant, frame_name: str) -> tuple[int, list[list[float]], list[float]]:
-    """(body index, R_BF rows, p_BF) of a plant frame F on its body B; "world" is the world
-    frame. Used to read F's pose from the plant's body poses."""
-    frame = plant.world_frame() if frame_name == "world" else plant.GetFrameByName(frame_name)
-    X_BF = frame.GetFixedPoseInBodyFrame()
-    return (
-        int(frame.body().index()),
-        X_BF.rotation().matrix().tolist(),
-        X_BF.translation().tolist(),
-    )
+def _frame_in_body(frame) -> tuple[int, list[list[float]]]:
+    """(body index, R_BF rows) of a plant frame F fixed in its body B: what reads F's
+    orientation from the plant's body poses."""
+    return int(frame.body().index()), frame.GetFixedPoseInBodyFrame().rotation().matrix().tolist()
 
 
-def _weld_mount(plant, weld_joint: str) -> dict:
-    """What the sensor needs of the plant: the weld's index, S on the tool, gravity."""
+def _weld(plant, weld_joint: str):
+    """The weld joint named `weld_joint`, or ValueError naming the key."""
     if not plant.HasJointNamed(weld_joint):
         raise ValueError(f"weld_joint: the plant has no joint named {weld_joint!r}")
     joint = plant.GetJointByName(weld_joint)
@@ -86,15 +81,53 @@ def _weld_mount(plant, weld_joint: str) -> dict:
         raise ValueError(
             f"weld_joint: {weld_joint!r} is a {joint.type_name()} joint; a weld is needed"
         )
-    body, R_BS, p_BS = _frame_in_body(plant, joint.frame_on_child().name())
-    if int(joint.frame_on_child().body().index()) != body:  # a name shared by two frames
-        raise ValueError(f"weld_joint: the frame of {weld_joint!r} on its child is ambiguous")
+    return joint
+
+
+def _weld_mount(plant, weld_joint: str) -> dict:
+    """What the sensor needs of the plant: the weld's index, S on the tool, gravity."""
+    joint = _weld(plant, weld_joint)
+    body, R_BS = _frame_in_body(joint.frame_on_child())
     return dict(
         joint_index=int(joint.index()),
         body_index=body,
         R_BS=R_BS,
         gravity=plant.gravity_field().gravity_vector().tolist(),
     )
+
+
+def carried_mass_and_com(plant, weld_joint: str) -> tuple[float, list[float]]:
+    """The mass the weld carries (kg) and its centre of mass in S (m), from the plant.
+
+    What the weld carries: its child body and every body joined to it outward (each
+    joint's child whose parent is already carried), in the plant's default
+    configuration. This is a perfectly calibrated tool; a scenario may give other values.
+    """
+    joint = _weld(plant, weld_joint)
+    carried = {joint.child_body().index()}
+    joints = [plant.get_joint(index) for index in plant.GetJointIndices()]
+    grew = True
+    while grew:
+        grew = False
+        for other in joints:
+            if other.parent_body().index() in carried and (
+                other.child_body().index() not in carried
+            ):
+                carried.add(other.child_body().index())
+                grew = True
+    context = plant.CreateDefaultContext()
+    mass, moment_W = 0.0, np.zeros(3)
+    for index in carried:
+        body = plant.get_body(index)
+        body_mass = body.get_mass(context)
+        p_WBcm = plant.EvalBodyPoseInWorld(context, body).multiply(
+            body.CalcCenterOfMassInBodyFrame(context)
+        )
+        mass += body_mass
+        moment_W += body_mass * p_WBcm
+    X_WS = joint.frame_on_child().CalcPoseInWorld(context)
+    com_W = moment_W / mass if mass > 0 else X_WS.translation()
+    return mass, X_WS.inverse().multiply(com_W).tolist()
 
 
 # Small 3-vector arithmetic on lists: the same code for floats and AutoDiffXd, and about
@@ -439,8 +472,12 @@ def WrenchInControlFrame_(T):
                 mount = _weld_mount(plant, weld_joint)
                 if control_frame != "world" and not plant.HasFrameNamed(control_frame):
                     raise ValueError(f"control_frame: the plant has no frame {control_frame!r}")
-                body_E, R_BE, _ = _frame_in_body(plant, control_frame)
-                frames = dict(S=(mount["body_index"], mount["R_BS"]), E=(body_E, R_BE))
+                frame_E = (
+                    plant.world_frame()
+                    if control_frame == "world"
+                    else plant.GetFrameByName(control_frame)
+                )
+                frames = dict(S=(mount["body_index"], mount["R_BS"]), E=_frame_in_body(frame_E))
             selected = [int(a) for a in axes]
             if (
                 not selected

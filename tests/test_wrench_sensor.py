@@ -48,7 +48,11 @@ from pydrake.systems.primitives import ConstantValueSource, RandomSource
 
 from admittance.diagrams.loop.point import AddSensorChain
 from admittance.diagrams.robots.description import ForcePoint, SensorChain
-from admittance.systems.wrench_sensor import WrenchInControlFrame, WrenchSensor
+from admittance.systems.wrench_sensor import (
+    WrenchInControlFrame,
+    WrenchSensor,
+    carried_mass_and_com,
+)
 
 
 def _panda_folder() -> Path | None:
@@ -309,9 +313,7 @@ def test_add_sensor_chain_wires_the_wrist_sensor():
         kind="wrench",
         filter_cutoff=0.0,
         weld_joint="ft_weld",
-        tool_mass=MASS,
-        tool_com=tuple(C_S),
-        contact_offset=tuple(R_SP),
+        contact_offset=tuple(R_SP),  # tool_mass and tool_com: the plant's
     )
     point = ForcePoint(
         name="tool",
@@ -340,6 +342,17 @@ def test_add_sensor_chain_wires_the_wrist_sensor():
     context = diagram.CreateDefaultContext()
     force = reading.measured_force_output.Eval(reading.control_frame.GetMyContextFromRoot(context))
     np.testing.assert_allclose(force, PUSH_E[[2, 3]], rtol=1e-9, atol=1e-9)
+
+
+def test_carried_mass_and_com_is_the_tool():
+    """The weld carries the sphere alone: 0.5 kg at c_S = X_BS^-1 c_B."""
+    plant, _ = _add_panda_with_tool(DiagramBuilder(), BASES["tilted"])
+    mass, com = carried_mass_and_com(plant, "ft_weld")
+    assert mass == pytest.approx(MASS, rel=1e-12)
+    np.testing.assert_allclose(com, C_S, rtol=0, atol=1e-12)
+    # panda_joint8 (link7 to the flange) carries the flange, the hand and its fingers,
+    # and the tool: more than the tool.
+    assert carried_mass_and_com(plant, "panda_joint8")[0] > MASS + 0.5
 
 
 def test_bad_arguments_name_themselves():
