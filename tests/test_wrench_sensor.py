@@ -43,8 +43,13 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import ExternallyAppliedSpatialForce, MultibodyPlant
 from pydrake.multibody.tree import FixedOffsetFrame, SpatialInertia, WeldJoint
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import ConstantValueSource, RandomSource
+from pydrake.systems.framework import DiagramBuilder, InputPortSelection, OutputPortSelection
+from pydrake.systems.primitives import (
+    ConstantValueSource,
+    ConstantVectorSource,
+    Linearize,
+    RandomSource,
+)
 
 from admittance.diagrams.loop.point import AddSensorChain
 from admittance.diagrams.robots.description import ForcePoint, SensorChain
@@ -302,6 +307,57 @@ def test_autodiff_reads_as_float():
     ad_frame = autodiff.GetSubsystemByName(frame.get_name())
     values = [v.value() for v in _eval(ad_frame, ad_frame.force_output, ad_context)]
     np.testing.assert_allclose(values, PUSH_E, rtol=1e-9, atol=1e-9)
+
+
+def test_linearizes_with_the_arm():
+    """Drake's Linearize through the plant's reaction forces (AutoDiffXd), the Panda held
+    by its gravity torques at rest: the filter's block of A is -2 pi f_c I; its coupling
+    to the arm's state x = (q, v) is (1 / tau) dw/dx, against central differences of the
+    float reading (step 1e-6, error O(1e-12) on terms of order 1: 1e-6 is ample). The
+    URDF's joint damping makes w depend on v even at rest."""
+    cutoff = 10.0
+    builder = DiagramBuilder()
+    plant, _ = _add_panda_with_tool(builder, BASES["tilted"], held=False)
+    sensor = builder.AddSystem(
+        WrenchSensor(plant, "ft_weld", tool_mass=MASS, tool_com=C_S, filter_cutoff_hz=cutoff)
+    )
+    builder.Connect(plant.get_reaction_forces_output_port(), sensor.reaction_forces_input)
+    builder.Connect(plant.get_body_poses_output_port(), sensor.body_poses_input)
+    zero = builder.AddSystem(ConstantVectorSource(np.zeros(6)))
+    builder.Connect(zero.get_output_port(), sensor.noise_input)
+    q = np.array([0.0, -0.5, 0.0, -2.0, 0.0, 1.5, 0.7, 0.02, 0.02])
+    plant_context = plant.CreateDefaultContext()
+    plant.SetPositions(plant_context, q)
+    holding = builder.AddSystem(
+        ConstantVectorSource(-plant.CalcGravityGeneralizedForces(plant_context))
+    )
+    builder.Connect(holding.get_output_port(), plant.get_applied_generalized_force_input_port())
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    plant.SetPositions(plant.GetMyMutableContextFromRoot(context), q)
+    sensor.InitializeReading(sensor.GetMyMutableContextFromRoot(context))
+    A = Linearize(
+        diagram,
+        context,
+        input_port_index=InputPortSelection.kNoInput,
+        output_port_index=OutputPortSelection.kNoOutput,
+        equilibrium_check_tolerance=1e-9,
+    ).A()
+    n, nq = plant.num_multibody_states(), plant.num_positions()
+    np.testing.assert_allclose(A[n:, n:], -2 * math.pi * cutoff * np.eye(6), rtol=1e-12)
+    state = np.concatenate([q, np.zeros(n - nq)])
+
+    def reading(x):
+        plant.SetPositionsAndVelocities(plant.GetMyMutableContextFromRoot(context), x)
+        return np.array(sensor.true_wrench(sensor.GetMyContextFromRoot(context)))
+
+    step = 1e-6
+    columns = [
+        (reading(state + step * e) - reading(state - step * e)) / (2 * step) for e in np.eye(n)
+    ]
+    expected = 2 * math.pi * cutoff * np.array(columns).T
+    assert np.abs(expected).max() > 1.0  # the coupling is there to be checked
+    np.testing.assert_allclose(A[n:, :n], expected, rtol=1e-6, atol=1e-6)
 
 
 def test_add_sensor_chain_wires_the_wrist_sensor():
