@@ -89,7 +89,10 @@ def _weld_mount(plant, weld_joint: str) -> dict:
     joint = _weld(plant, weld_joint)
     body, R_BS = _frame_in_body(joint.frame_on_child())
     return dict(
-        joint_index=int(joint.index()),
+        # The reaction-force port holds one entry per joint in the order of their indices
+        # (Drake's joint ordinals): a plant whose joints were removed (a description's
+        # joints replaced by welds) has gaps in its indices, so the entry is the position.
+        joint_index=[int(i) for i in plant.GetJointIndices()].index(int(joint.index())),
         body_index=body,
         R_BS=R_BS,
         gravity=plant.gravity_field().gravity_vector().tolist(),

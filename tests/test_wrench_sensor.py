@@ -95,9 +95,10 @@ BASES = {
 }
 
 
-def _add_panda_with_tool(builder, X_W0, *, held=True):
+def _add_panda_with_tool(builder, X_W0, *, held=True, remove=None):
     """The Panda welded at X_W0 with the tool on ``ft_weld``, and the frame E; `held`
-    makes every joint fixed (the arm held still at q = 0)."""
+    makes every joint fixed (the arm held still at q = 0); `remove` names a joint removed
+    before the weld is added (its index is then a gap)."""
     text = (PANDA / "urdf" / "panda.urdf").read_text()
     if held:
         text = re.sub(r'type="(revolute|prismatic)"', 'type="fixed"', text)
@@ -107,6 +108,11 @@ def _add_panda_with_tool(builder, X_W0, *, held=True):
     parser.package_map().Add("example-robot-data", str(PANDA.parent.parent))
     (model,) = parser.AddModelsFromString(text, "urdf")
     plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("panda_link0"), X_W0)
+    if remove is not None:  # replaced by a weld, as a description may do
+        joint = plant.GetJointByName(remove)
+        parent, child = joint.frame_on_parent(), joint.frame_on_child()
+        plant.RemoveJoint(joint)
+        plant.WeldFrames(parent, child, RigidTransform())
     tool = plant.AddRigidBody(
         "tool", model, SpatialInertia.SolidSphereWithMass(MASS, RADIUS).Shift(-C_B)
     )
@@ -182,6 +188,25 @@ def test_still_tool_reads_its_weight_and_compensates_to_zero(base):
     compensated = _eval(sensor, sensor.compensated_wrench_output, context)
     np.testing.assert_allclose(compensated, 0.0, atol=1e-9)
     np.testing.assert_allclose(_eval(frame, frame.force_output, context), 0.0, atol=1e-9)
+
+
+def test_weld_after_a_removed_joint():
+    """A description's joint removed and welded again (its index left a gap): the weld's
+    entry in the reaction-force port is its position among the joints; it reads the
+    weight."""
+    builder = DiagramBuilder()
+    plant, _ = _add_panda_with_tool(builder, BASES["upright"], remove="panda_hand_tcp_joint")
+    indices = [int(i) for i in plant.GetJointIndices()]
+    assert indices != list(range(len(indices)))  # the gap is there
+    sensor = builder.AddSystem(WrenchSensor(plant, "ft_weld", tool_mass=MASS, tool_com=C_S))
+    builder.Connect(plant.get_reaction_forces_output_port(), sensor.reaction_forces_input)
+    builder.Connect(plant.get_body_poses_output_port(), sensor.body_poses_input)
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    sensor_context = sensor.GetMyMutableContextFromRoot(context)
+    sensor.noise_input.FixValue(sensor_context, np.zeros(6))
+    raw = sensor.wrench_output.Eval(sensor_context)
+    np.testing.assert_allclose(raw, _weight_in_S("upright"), rtol=1e-9, atol=1e-9)
 
 
 @pytest.mark.parametrize("base", sorted(BASES))
