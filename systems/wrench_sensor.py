@@ -219,8 +219,8 @@ def WrenchSensor_(T):
             torque_noise_std: float = 0.0,
             filter_cutoff_hz: float = 0.0,
             period: float = 0.0,
-            tool_mass: float = 0.0,
-            tool_com: Sequence[float] = (0.0, 0.0, 0.0),
+            tool_mass: float | None = None,
+            tool_com: Sequence[float] | None = None,
             mount: dict | None = None,
             converter=None,
         ) -> None:
@@ -235,8 +235,9 @@ def WrenchSensor_(T):
                 torque_noise_std: std of the white noise on tx, ty, tz, N m (>= 0).
                 filter_cutoff_hz: cut-off of the first-order low-pass, Hz (0 = none).
                 period: readout period, s (0 = continuous).
-                tool_mass: the mass the weld carries, kg (>= 0), for the compensation.
-                tool_com: its centre of mass in S, m.
+                tool_mass: the mass the weld carries, kg (>= 0), for the compensation
+                    (None: the plant's, see :func:`carried_mass_and_com`).
+                tool_com: its centre of mass in S, m (None: the plant's).
                 mount: the plant's data this system uses (scalar conversion only).
                 converter: scalar converter, supplied by TemplateSystem.
 
@@ -248,6 +249,12 @@ def WrenchSensor_(T):
                 if plant is None:
                     raise ValueError("WrenchSensor needs the plant and its weld_joint")
                 mount = _weld_mount(plant, weld_joint)
+            if tool_mass is None or tool_com is None:  # a perfectly calibrated tool
+                if plant is None:
+                    raise ValueError("WrenchSensor needs the plant for the tool's inertia")
+                carried = carried_mass_and_com(plant, weld_joint)
+                tool_mass = carried[0] if tool_mass is None else tool_mass
+                tool_com = carried[1] if tool_com is None else tool_com
             cutoff = _nonnegative("filter_cutoff_hz", filter_cutoff_hz, "Hz (0 = none)")
             h = _nonnegative("period", period, "s (0 = continuous)")
             self._arguments = dict(

@@ -135,17 +135,23 @@ def _apply_surface_wrench(builder, plant, tool):
     builder.Connect(source.get_output_port(), plant.get_applied_spatial_force_input_port())
 
 
+def _add_sensor(builder, plant, **sensor_args):
+    """A WrenchSensor on ``ft_weld`` (the rig's tool by default) reading the plant."""
+    sensor_args.setdefault("tool_mass", MASS)
+    sensor_args.setdefault("tool_com", C_S)
+    sensor = builder.AddSystem(WrenchSensor(plant, "ft_weld", **sensor_args))
+    builder.Connect(plant.get_reaction_forces_output_port(), sensor.reaction_forces_input)
+    builder.Connect(plant.get_body_poses_output_port(), sensor.body_poses_input)
+    return sensor
+
+
 def _rig(base="upright", *, push=False, noise_source=None, **sensor_args):
     """The rig's diagram, its context, the sensor and the control-frame reading."""
     builder = DiagramBuilder()
     plant, tool = _add_panda_with_tool(builder, BASES[base])
     if push:
         _apply_surface_wrench(builder, plant, tool)
-    sensor_args.setdefault("tool_mass", MASS)
-    sensor_args.setdefault("tool_com", C_S)
-    sensor = builder.AddSystem(WrenchSensor(plant, "ft_weld", **sensor_args))
-    builder.Connect(plant.get_reaction_forces_output_port(), sensor.reaction_forces_input)
-    builder.Connect(plant.get_body_poses_output_port(), sensor.body_poses_input)
+    sensor = _add_sensor(builder, plant, **sensor_args)
     if noise_source is not None:
         source = builder.AddSystem(noise_source)
         builder.Connect(source.get_output_port(0), sensor.noise_input)
@@ -198,9 +204,7 @@ def test_weld_after_a_removed_joint():
     plant, _ = _add_panda_with_tool(builder, BASES["upright"], remove="panda_hand_tcp_joint")
     indices = [int(i) for i in plant.GetJointIndices()]
     assert indices != list(range(len(indices)))  # the gap is there
-    sensor = builder.AddSystem(WrenchSensor(plant, "ft_weld", tool_mass=MASS, tool_com=C_S))
-    builder.Connect(plant.get_reaction_forces_output_port(), sensor.reaction_forces_input)
-    builder.Connect(plant.get_body_poses_output_port(), sensor.body_poses_input)
+    sensor = _add_sensor(builder, plant)
     diagram = builder.Build()
     context = diagram.CreateDefaultContext()
     sensor_context = sensor.GetMyMutableContextFromRoot(context)
@@ -228,9 +232,7 @@ def test_inertial_force_is_not_compensated():
     -m a in S (Newton's second law for the tool; a from the plant's forward dynamics)."""
     builder = DiagramBuilder()
     plant, tool = _add_panda_with_tool(builder, BASES["upright"], held=False)
-    sensor = builder.AddSystem(WrenchSensor(plant, "ft_weld", tool_mass=MASS, tool_com=C_S))
-    builder.Connect(plant.get_reaction_forces_output_port(), sensor.reaction_forces_input)
-    builder.Connect(plant.get_body_poses_output_port(), sensor.body_poses_input)
+    sensor = _add_sensor(builder, plant)
     diagram = builder.Build()
     context = diagram.CreateDefaultContext()
     plant_context = plant.GetMyMutableContextFromRoot(context)
@@ -343,11 +345,7 @@ def test_linearizes_with_the_arm():
     cutoff = 10.0
     builder = DiagramBuilder()
     plant, _ = _add_panda_with_tool(builder, BASES["tilted"], held=False)
-    sensor = builder.AddSystem(
-        WrenchSensor(plant, "ft_weld", tool_mass=MASS, tool_com=C_S, filter_cutoff_hz=cutoff)
-    )
-    builder.Connect(plant.get_reaction_forces_output_port(), sensor.reaction_forces_input)
-    builder.Connect(plant.get_body_poses_output_port(), sensor.body_poses_input)
+    sensor = _add_sensor(builder, plant, filter_cutoff_hz=cutoff)
     zero = builder.AddSystem(ConstantVectorSource(np.zeros(6)))
     builder.Connect(zero.get_output_port(), sensor.noise_input)
     q = np.array([0.0, -0.5, 0.0, -2.0, 0.0, 1.5, 0.7, 0.02, 0.02])
@@ -431,6 +429,10 @@ def test_carried_mass_and_com_is_the_tool():
     mass, com = carried_mass_and_com(plant, "ft_weld")
     assert mass == pytest.approx(MASS, rel=1e-12)
     np.testing.assert_allclose(com, C_S, rtol=0, atol=1e-12)
+    # Without tool_mass and tool_com the sensor takes these: the still tool reads zero.
+    diagram, context, sensor, _ = _rig("tilted", tool_mass=None, tool_com=None)
+    compensated = _eval(sensor, sensor.compensated_wrench_output, context)
+    np.testing.assert_allclose(compensated, 0.0, atol=1e-9)
     # panda_joint8 (link7 to the flange) carries the flange, the hand and its fingers,
     # and the tool: more than the tool.
     assert carried_mass_and_com(plant, "panda_joint8")[0] > MASS + 0.5

@@ -34,11 +34,7 @@ from admittance.systems.flexiforce import FlexiForceSensor
 from admittance.systems.optimal_admittance import OptimalAdmittance
 from admittance.systems.planar_kinematics import PlanarKinematics
 from admittance.systems.sensor_fault import SensorFault
-from admittance.systems.wrench_sensor import (
-    WrenchInControlFrame,
-    WrenchSensor,
-    carried_mass_and_com,
-)
+from admittance.systems.wrench_sensor import WrenchInControlFrame, WrenchSensor
 
 __all__ = [
     "AddCommandedPosition",
@@ -102,7 +98,6 @@ def _AddWrenchChain(
         raise ValueError("sensor.kind wrench: AddSensorChain needs the plant")
     if chain.faults:
         raise ValueError("sensor.kind wrench: sensor faults are for the one-axis sensors")
-    mass, com = carried_mass_and_com(plant, chain.weld_joint)
     sensor = builder.AddSystem(
         WrenchSensor(
             plant,
@@ -112,8 +107,8 @@ def _AddWrenchChain(
             torque_noise_std=chain.torque_noise_std,
             filter_cutoff_hz=chain.filter_cutoff,
             period=chain.period,
-            tool_mass=mass if chain.tool_mass is None else chain.tool_mass,
-            tool_com=com if chain.tool_com is None else chain.tool_com,
+            tool_mass=chain.tool_mass,
+            tool_com=chain.tool_com,
         )
     )
     sensor.set_name(point.system_name("wrench_sensor"))
