@@ -174,10 +174,10 @@ def WrenchSensor_(T):
 
         The low-pass is the sensor's own (its electronics), so bias and noise enter after
         it and the compensation (a controller's step, as in ros2's admittance_controller)
-        acts on the reading. The readout period h holds both readings between samples
-        (each computed at the sample t_k, with the noise sample and the orientation then,
-        and output from the discrete state: nothing is evaluated between samples); with
-        f_c = 0 it is a zero-order hold, ``x[k+1] = w[k]``. With neither filter nor period
+        acts on the reading. The readout period h holds x between samples (one discrete
+        group of 6; Drake caches the raw reading until the next sample or noise draw, the
+        compensated one follows the sensor's orientation); with f_c = 0 it is a
+        zero-order hold, ``x[k+1] = w[k]``. With neither filter nor period
         the reading feeds through from ``reaction_forces``: on a continuous plant those
         depend on the actuation, so a loop closed through them is algebraic (Drake says
         so at Build); give it a filter or a period, or use a discrete plant.
@@ -290,19 +290,13 @@ def WrenchSensor_(T):
             )
             self.noise_input = self.DeclareVectorInputPort("noise", 6)
             if h > 0:
-                # The filter x, and the two readings held from the last sample.
+                # One group, x: a context's SetDiscreteState(x) sets the sensor's reading.
                 self._state = self.DeclareDiscreteState(6)
-                self._held = self.DeclareDiscreteState(6)
-                self._held_compensated = self.DeclareDiscreteState(6)
                 self.DeclarePeriodicDiscreteUpdateEvent(
                     period_sec=h, offset_sec=0.0, update=self._sample
                 )
-                self.wrench_output = self.DeclareStateOutputPort("wrench", self._held)
-                self.compensated_wrench_output = self.DeclareStateOutputPort(
-                    "compensated_wrench", self._held_compensated
-                )
-                return
-            if cutoff > 0:
+                reading = {self.xd_ticket()}
+            elif cutoff > 0:
                 self.DeclareContinuousState(BasicVector_[T]([0.0] * 6))
                 reading = {self.xc_ticket()}
             else:
@@ -335,19 +329,21 @@ def WrenchSensor_(T):
             return weight_S + _cross(self._com, weight_S)
 
         def _filtered(self, context) -> list:
-            """x: the continuous filter's state, or w without it (no period)."""
+            """x: the filter's (or the hold's) state, or w when there is neither."""
+            if self._period > 0:
+                return context.get_discrete_state(self._state).value().tolist()
             if self._tau > 0:
                 return context.get_continuous_state_vector().CopyToVector().tolist()
             return self.true_wrench(context)
 
-        def _reading(self, context, filtered=None) -> list:
-            """x + b + sigma n, x the filtered wrench (by default the live one)."""
+        def _reading(self, context) -> list:
+            """x + b + sigma n."""
             noise = self.noise_input.Eval(context).tolist()
-            if filtered is None:
-                filtered = self._filtered(context)
             return [
                 x + b + s * n
-                for x, b, s, n in zip(filtered, self._bias, self._sigma, noise, strict=True)
+                for x, b, s, n in zip(
+                    self._filtered(context), self._bias, self._sigma, noise, strict=True
+                )
             ]
 
         def _calc_wrench(self, context, output) -> None:
@@ -370,31 +366,21 @@ def WrenchSensor_(T):
             )
 
         def _sample(self, context, discrete_state) -> None:
-            """x[k+1] = w[k] + (x[k] - w[k]) exp(-h / tau), and the readings of x[k+1]
-            held until the next sample (the noise sample and the orientation of t_k)."""
+            """x[k+1] = w[k] + (x[k] - w[k]) exp(-h / tau)."""
             state = context.get_discrete_state(self._state).value().tolist()
-            wrench = self.true_wrench(context)
-            filtered = [w + (x - w) * self._decay for w, x in zip(wrench, state, strict=True)]
-            self._hold(context, discrete_state, filtered)
-
-        def _hold(self, context, discrete_state, filtered) -> None:
-            """Writes x, its reading and the compensated reading into the discrete state."""
-            reading = self._reading(context, filtered)
-            weight = self.weight_wrench(context)
-            compensated = [r - w for r, w in zip(reading, weight, strict=True)]
-            for index, value in (
-                (self._state, filtered),
-                (self._held, reading),
-                (self._held_compensated, compensated),
-            ):
-                discrete_state.get_mutable_vector(index).SetFromVector(value)
+            discrete_state.get_mutable_vector(self._state).SetFromVector(
+                [
+                    w + (x - w) * self._decay
+                    for w, x in zip(self.true_wrench(context), state, strict=True)
+                ]
+            )
 
         def InitializeReading(self, context) -> None:
             """Sets the filter's (or hold's) state to the true wrench now: a sensor that
-            has settled on the initial load (the plant's state must be set first)."""
+            has settled on the initial load (the plant's state must be set first). Any
+            other start: ``SetDiscreteState`` or ``SetContinuousState`` of x."""
             if self._period > 0:
-                state = context.get_mutable_discrete_state()
-                self._hold(context, state, self.true_wrench(context))
+                context.SetDiscreteState(self._state, self.true_wrench(context))
             elif self._tau > 0:
                 context.SetContinuousState(self.true_wrench(context))
 
