@@ -183,11 +183,12 @@ def WrenchSensor_(T):
         so at Build); give it a filter or a period, or use a discrete plant.
 
         The compensation removes the weight of a tool at rest. It does not remove the
-        tool's inertial forces: an accelerating tool adds m a to the reading (and the
-        moment c x m a). A slide at 2 cm/s reached in 0.2 s accelerates at 0.1 m/s^2:
-        0.05 N for a 0.5 kg tool, 0.5 % of a 10 N press; at constant speed it is zero
-        (docs/wrist-sensor.md).
-        ``tool_mass`` and ``tool_com`` are those of everything the weld carries.
+        tool's inertial forces: the tool, accelerating at a, reads m (g - a), so -m a
+        stays in the compensated reading (and its moment -c x m a, and the rotational
+        inertia's). A slide at 2 cm/s reached in 0.2 s accelerates at 0.1 m/s^2: 0.05 N
+        for a 0.5 kg tool, 0.5 % of a 10 N press; at constant speed it is zero
+        (docs/wrist-sensor.md). ``tool_mass`` and ``tool_com`` are those of everything
+        the weld carries (None: taken from the plant, a perfectly calibrated tool).
 
         ``noise`` is standard normal (a RandomSource of kGaussian, sampled at the
         sensor's period), scaled here, so a zero input is a noise-free sensor. The
