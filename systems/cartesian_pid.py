@@ -7,6 +7,16 @@ splits the law's output with a ``Demultiplexer``, so that each derivative evalua
 closed loop calls the PID's Python once (a LeafSystem with its own continuous state needs
 three: the law, its output and its derivatives). The sampled controller keeps the integral
 and the held torque as the law's discrete states, and outputs the held torque directly.
+
+In six dimensions X = (p, r), r = log(R_EF) the rotation vector of the tool's orientation
+in the control frame E (systems/spatial_kinematics.py). The rotational part of ec is not
+r_c - r, which jumps by 2 pi across |r| = pi and is not a rotation, but the rotation
+vector of the relative rotation, in E:  e_R = log(R_d R^T),  R_d = exp(r_c), R = exp(r).
+R_d R^T turns the measured orientation into the commanded one (R_d = (R_d R^T) R). With
+dR/dt = [omega]x R in E, d(R_d R^T)/dt = [omega_d - R_d R^T omega]x R_d R^T, so to first
+order in e_R, de_R/dt = omega_d - omega: the rate eq. 15 uses, read from J's angular rows.
+e_R is defined for every orientation (|e_R| <= pi), with no Euler-angle singularity.
+A real arm's torque interface adds g(q) and a null-space posture (systems/posture_task.py).
 """
 
 from __future__ import annotations
@@ -25,13 +35,15 @@ from pydrake.systems.scalar_conversion import TemplateSystem
 from admittance.systems.law_integral import AddLawIntegral
 from admittance.systems.planar_kinematics import (
     PLANAR_COORDINATES,
-    PlanarFrameKinematics,
+    ROTATION_COORDINATES,
     kinematics_size,
     task_coordinates,
     wrap_angle,
 )
+from admittance.systems.posture_task import JointSpaceTorque, PostureTask
+from admittance.systems.spatial_kinematics import frame_kinematics, orientation_error
 
-__all__ = ["CartesianPid", "CartesianPidLaw", "CartesianPidLaw_"]
+__all__ = ["CartesianPid", "CartesianPidLaw", "CartesianPidLaw_", "PostureTask"]
 
 
 def _gain_vector(name: str, value, size: int, *, allow_zero: bool) -> np.ndarray:
@@ -41,13 +53,6 @@ def _gain_vector(name: str, value, size: int, *, allow_zero: bool) -> np.ndarray
         relation = ">= 0" if allow_zero else "> 0"
         raise ValueError(f"{name} must be finite and {relation}, got {array.tolist()}")
     return array
-
-
-_LAW = """
-            ec = Xc - h(q),  dec/dt = dXc/dt - J(q) v                        (eq. 15)
-            F_PID = Kp ec + Kd dec/dt + Ki integral(ec)                      (eq. 14)
-            tau = clip(J(q)^T F_PID, -effort_limit, effort_limit)            (eq. 16)
-"""
 
 
 @TemplateSystem.define("CartesianPidLaw_", T_list=[float, AutoDiffXd])
@@ -94,6 +99,8 @@ def CartesianPidLaw_(T):
             ki: float | Sequence[float],
             period: float = 0.0,
             coordinates: Sequence[str] = PLANAR_COORDINATES,
+            gravity_compensation: bool = False,
+            posture: PostureTask | None = None,
             converter=None,
         ) -> None:
             """
@@ -103,6 +110,8 @@ def CartesianPidLaw_(T):
                     equivalents. kp > 0, kd >= 0, ki >= 0.
                 period: 0 for a continuous controller, otherwise its sampling period in s.
                 coordinates: the task vector X, names among TASK_COORDINATES.
+                gravity_compensation: add -tau_g(q) = g(q) from the plant.
+                posture: a joint-space posture task in the null space of J, or None.
             """
             LeafSystem_[T].__init__(self, converter=converter)
             self._plant = plant
@@ -112,6 +121,18 @@ def CartesianPidLaw_(T):
             self._angle_index = (
                 self._coordinates.index("theta") if "theta" in self._coordinates else None
             )
+            # Where rx, ry, rz sit in X (None without a rotation vector).
+            self._rotation_indices = (
+                [self._coordinates.index(c) for c in ROTATION_COORDINATES]
+                if ROTATION_COORDINATES[0] in self._coordinates
+                else None
+            )
+            self._gravity_compensation = bool(gravity_compensation)
+            self._posture = posture
+            self._joint_space = JointSpaceTorque(
+                plant, gravity_compensation=gravity_compensation, posture=posture
+            )
+            self._uses_state = self._joint_space.active
             num_velocities = plant.num_velocities()
             num_actuators = plant.num_actuated_dofs()
             if num_actuators < size:
@@ -123,7 +144,9 @@ def CartesianPidLaw_(T):
             # Where the parts of the law's input start: Xc, dXc/dt, [X; dX/dt; J], z.
             self._kinematics_start = 2 * size
             self._jacobian_start = 4 * size
-            self._integral_start = 4 * size + size * num_velocities
+            self._state_start = 4 * size + size * num_velocities
+            num_states = plant.num_positions() + num_velocities if self._uses_state else 0
+            self._integral_start = self._state_start + num_states
             # tau = J^T F_PID as straight-line code on the input vector.
             self._transpose_product = _transpose_product(size, num_velocities, self._jacobian_start)
             self._kp = _gain_vector("kp", kp, size, allow_zero=False)
@@ -160,6 +183,8 @@ def CartesianPidLaw_(T):
             self._beyond_limits = _beyond_limits(limits)
 
             self._input_sizes = [size, size, kinematics_size(num_velocities, size)]
+            if self._uses_state:
+                self._input_sizes.append(num_states)
             if self._period == 0.0:
                 self._input_sizes.append(size)
             self.law_input = self.DeclareVectorInputPort("law_input", sum(self._input_sizes))
@@ -189,6 +214,8 @@ def CartesianPidLaw_(T):
                 ki=other._ki,
                 period=other._period,
                 coordinates=other._coordinates,
+                gravity_compensation=other._gravity_compensation,
+                posture=other._posture,
                 converter=converter,
             )
 
@@ -212,8 +239,14 @@ def CartesianPidLaw_(T):
 
         @property
         def input_sizes(self) -> list[int]:
-            """The sizes of the parts of ``law_input``: Xc, dXc/dt, kinematics (and z)."""
+            """The sizes of the parts of ``law_input``: Xc, dXc/dt, kinematics (, state)
+            (and z)."""
             return list(self._input_sizes)
+
+        @property
+        def uses_state(self) -> bool:
+            """Whether ``law_input`` holds the plant's state (gravity or posture on)."""
+            return self._uses_state
 
         def set_integral(self, context, integral) -> None:
             """Sets z in this system's context (the sampled law's discrete state)."""
@@ -223,12 +256,22 @@ def CartesianPidLaw_(T):
 
         def cartesian_error(self, context) -> np.ndarray:
             """ec = Xc - h(q) (angle wrapped) at the context's inputs."""
-            values = self.law_input.Eval(context).tolist()
-            start = self._kinematics_start
+            return np.array(self._error(self.law_input.Eval(context).tolist()))
+
+        def _error(self, values) -> list:
+            """ec (eq. 15): Xc - X, the angle wrapped, the rotation part log(R_d R^T)."""
+            start = self._kinematics_start  # X, then dX/dt
             error = [values[i] - values[start + i] for i in range(self._size)]
             if self._angle_index is not None:
                 error[self._angle_index] = wrap_angle(error[self._angle_index])
-            return np.array(error)
+            if self._rotation_indices is not None:
+                rows = self._rotation_indices
+                rotation = orientation_error(
+                    [values[i] for i in rows], [values[start + i] for i in rows]
+                )
+                for row, value in zip(rows, rotation, strict=True):
+                    error[row] = value
+            return error
 
         # --- the law ----------------------------------------------------------------------
         def _law(self, values, integral):
@@ -241,9 +284,7 @@ def CartesianPidLaw_(T):
             kp, kd, ki = self._kp_list, self._kd_list, self._ki_list
             size = self._size
             start = self._kinematics_start  # X, then dX/dt
-            error = [values[i] - values[start + i] for i in range(size)]  # eq. 15
-            if self._angle_index is not None:
-                error[self._angle_index] = wrap_angle(error[self._angle_index])
+            error = self._error(values)  # eq. 15
             wrench = [  # eq. 14
                 kp[i] * error[i]
                 + kd[i] * (values[size + i] - values[start + size + i])
@@ -251,17 +292,29 @@ def CartesianPidLaw_(T):
                 for i in range(size)
             ]
             torque = self._transpose_product(values, wrench)  # tau = J^T F_PID (eq. 16)
+            jacobian = None
+            if self._uses_state:  # + g(q) and the null-space posture
+                jacobian = self._jacobian(values)
+                state = values[self._state_start : self._integral_start]
+                extra = self._joint_space.torque(state, jacobian)
+                torque = [t + e for t, e in zip(torque, extra.tolist(), strict=True)]
             if not self._actuators_in_joint_order:
                 torque = (self._actuation_from_generalized @ np.array(torque)).tolist()
             if not self._beyond_limits(torque if T is float else [t.value() for t in torque]):
                 return torque, error, error
             torque = np.array(torque)
             clipped = self._clip(torque)
-            jacobian = np.array(
-                values[self._jacobian_start : self._jacobian_start + size * self._num_velocities]
-            ).reshape(size, self._num_velocities)
+            if jacobian is None:
+                jacobian = self._jacobian(values)
             rate = self._integral_rate(error, clipped - torque, jacobian)
             return clipped.tolist(), rate.tolist(), error
+
+        def _jacobian(self, values) -> np.ndarray:
+            """J (m x nv) from ``law_input`` as a list."""
+            start, size = self._jacobian_start, self._size
+            return np.array(values[start : start + size * self._num_velocities]).reshape(
+                size, self._num_velocities
+            )
 
         def _clip(self, torque):
             """tau clipped to the effort limits."""
@@ -372,18 +425,20 @@ class CartesianPid(Diagram):
     X of the controlled frame, its rate J v and J come from the ``kinematics`` input: the
     output of a ``PlanarKinematics`` of the same plant, frame and task space
     (systems/planar_kinematics.py). The task space is given at construction: which
-    coordinates of the frame (TASK_COORDINATES: its origin's x, y, z and its rotation theta
-    about z) measured in which frame; by default (x, y, theta) in world, the planar arm. A
-    finger of a hand is controlled on (x, y) of its tip in a frame fixed at the face it
-    touches, and drives only its own joints (the fingers' torques are added). The angle
-    error is wrapped to [-pi, pi]. The commanded
-    velocity is whatever the caller wires in; the project feeds dXd/dt only, so the
-    admittance offset Xr is never differentiated (its derivative would carry the force
-    noise). Torques are clipped to the actuators' effort limits read from the plant (the
-    URDF), and mapped to the actuation vector through the plant's actuation matrix. There
-    is no gravity compensation, as in the paper: the integral term carries the arm's
-    weight. While an actuator saturates, back-calculation anti-windup pulls the integral
-    back (see ``CartesianPidLaw._integral_rate``), so a blocked arm does not wind it up.
+    coordinates of the frame (TASK_COORDINATES: its origin's x, y, z, its rotation theta
+    about z, or its rotation vector rx, ry, rz) measured in which frame; by default
+    (x, y, theta) in world, the planar arm. A finger of a hand is controlled on (x, y) of
+    its tip in a frame fixed at the face it touches, and drives only its own joints. The
+    angle error is wrapped to [-pi, pi]; the rotation error is log(R_d R^T) (see the
+    module). The commanded velocity is whatever the caller wires in; the project feeds
+    dXd/dt only, so the admittance offset Xr is never differentiated. Torques are clipped
+    to the actuators' effort limits read from the plant, and mapped to the actuation
+    vector through the plant's actuation matrix. By default there is no gravity
+    compensation, as in the paper (the integral term carries the arm's weight); a real
+    arm's adds g(q), and a redundant arm's a posture in the null space of J
+    (``gravity_compensation``, ``posture``; the ``state`` input then reads [q; v]). While
+    an actuator saturates, back-calculation anti-windup pulls the integral back (see
+    ``CartesianPidLaw._integral_rate``), so a blocked arm does not wind it up.
 
     Inside: the law (``CartesianPidLaw``, named ``law``) and, for the continuous
     controller, ``integral`` (Drake's ``Integrator``, state z = integral(ec)) fed with dz/dt
@@ -398,6 +453,7 @@ class CartesianPid(Diagram):
         - commanded_position
         - commanded_velocity
         - kinematics
+        - state (with gravity compensation or a posture task)
         output_ports:
         - actuation
     """
@@ -413,39 +469,57 @@ class CartesianPid(Diagram):
         period: float = 0.0,
         coordinates: Sequence[str] = PLANAR_COORDINATES,
         expressed_in: str = "world",
+        gravity_compensation: bool = False,
+        posture: PostureTask | None = None,
     ) -> None:
         """
         Args:
             plant: finalized MultibodyPlant (the arm, or a hand with its object).
             frame_name: the controlled frame (the fingertip contact point).
             kp, kd, ki: diagonal gains on X: N/m, N s/m, N/(m s) and the rotational
-                equivalents. kp > 0, kd >= 0, ki >= 0.
+                equivalents (N m/rad, N m s/rad, N m/(rad s)). kp > 0, kd >= 0, ki >= 0.
             period: 0 for a continuous controller, otherwise its sampling period in s.
             coordinates: the task vector X, names among TASK_COORDINATES.
             expressed_in: the frame X is measured and expressed in (fixed in world).
+            gravity_compensation: add g(q) = -tau_g(q) from the plant (the ``state``
+                input is then declared).
+            posture: a joint-space posture task in the null space of J (systems/
+                posture_task.py), or None (with one, the ``state`` input is declared).
         """
         Diagram.__init__(self)
-        self._kinematics = PlanarFrameKinematics(
+        self._kinematics = frame_kinematics(
             plant, frame_name, coordinates=coordinates, expressed_in=expressed_in
         )
         _check_frame_actuated(plant, frame_name)
         builder = DiagramBuilder()
         law = builder.AddNamedSystem(
             "law",
-            CartesianPidLaw(plant, kp=kp, kd=kd, ki=ki, period=period, coordinates=coordinates),
+            CartesianPidLaw(
+                plant,
+                kp=kp,
+                kd=kd,
+                ki=ki,
+                period=period,
+                coordinates=coordinates,
+                gravity_compensation=gravity_compensation,
+                posture=posture,
+            ),
         )
         self._law = law
         self._actuation_from_generalized = law._actuation_from_generalized
         self._integrator = None
         inputs = builder.AddNamedSystem("inputs", Multiplexer(law.input_sizes))
         builder.Connect(inputs.get_output_port(), law.law_input)
-        for index, name in enumerate(("commanded_position", "commanded_velocity", "kinematics")):
+        names = ["commanded_position", "commanded_velocity", "kinematics"]
+        if law.uses_state:
+            names.append("state")
+        for index, name in enumerate(names):
             builder.ExportInput(inputs.get_input_port(index), name)
         if law.period == 0.0:
             self._integrator = AddLawIntegral(
                 builder,
                 law.actuation_and_integral_rate_output,
-                inputs.get_input_port(3),
+                inputs.get_input_port(len(names)),
                 "actuation",
             )
         else:
@@ -454,6 +528,8 @@ class CartesianPid(Diagram):
         self.commanded_position_input = self.GetInputPort("commanded_position")
         self.commanded_velocity_input = self.GetInputPort("commanded_velocity")
         self.kinematics_input = self.GetInputPort("kinematics")
+        #: The plant's state [q; v] (None unless gravity compensation or a posture is on).
+        self.state_input = self.GetInputPort("state") if law.uses_state else None
         self.actuation_output = self.GetOutputPort("actuation")
 
     # --- accessors -----------------------------------------------------------------------

@@ -40,8 +40,10 @@ __all__ = [
     "PlanarFrameKinematics",
     "PlanarKinematics",
     "PlanarKinematics_",
+    "ROTATION_COORDINATES",
     "TASK_SIZE",
     "generate_planar_kinematics",
+    "has_rotation_vector",
     "kinematics_size",
     "split_kinematics",
     "wrap_angle",
@@ -51,11 +53,14 @@ __all__ = [
 TASK_SIZE = 3
 # The arm's task vector, the default.
 PLANAR_COORDINATES = ("x", "y", "theta")
-#: The coordinates a task vector may pick: the position of the frame's origin in E and
-#: its rotation about E's z axis.
-TASK_COORDINATES = ("x", "y", "z", "theta")
+#: The coordinates a task vector may pick: the position of the frame's origin in E, its
+#: rotation about E's z axis, or the rotation vector of its orientation in E (all three
+#: of rx, ry, rz, never with theta: systems/spatial_kinematics.py computes them).
+TASK_COORDINATES = ("x", "y", "z", "theta", "rx", "ry", "rz")
+#: The spatial orientation coordinates: the rotation vector of R_EF.
+ROTATION_COORDINATES = ("rx", "ry", "rz")
 # Their rows in a spatial velocity (wx, wy, wz, vx, vy, vz).
-_SPATIAL_ROW = {"x": 3, "y": 4, "z": 5, "theta": 2}
+_SPATIAL_ROW = {"x": 3, "y": 4, "z": 5, "theta": 2, "rx": 0, "ry": 1, "rz": 2}
 
 
 def wrap_angle(angle):
@@ -95,7 +100,26 @@ def task_coordinates(coordinates) -> tuple[str, ...]:
         raise ValueError(
             f"coordinates must be distinct names among {TASK_COORDINATES}, got {coordinates}"
         )
+    rotations = [c for c in coordinates if c in ROTATION_COORDINATES]
+    if rotations and (len(rotations) != 3 or "theta" in coordinates):
+        raise ValueError(
+            f"coordinates: the rotation vector needs all of {ROTATION_COORDINATES} and no "
+            f"theta, got {coordinates}"
+        )
     return coordinates
+
+
+def has_rotation_vector(coordinates) -> bool:
+    """Whether the task vector holds the rotation vector (rx, ry, rz) of the frame."""
+    return any(c in ROTATION_COORDINATES for c in coordinates)
+
+
+def _check_planar(coordinates) -> None:
+    if has_rotation_vector(coordinates):
+        raise ValueError(
+            f"coordinates {coordinates}: the rotation vector is computed by SpatialKinematics "
+            "(systems/spatial_kinematics.py), not PlanarKinematics"
+        )
 
 
 def _check_frame(plant, frame_name: str, expressed_in: str = "world") -> None:
@@ -217,6 +241,7 @@ def generate_planar_kinematics(
     """
     _check_frame(plant, frame_name, expressed_in)
     coordinates = task_coordinates(coordinates)
+    _check_planar(coordinates)
     symbolic = plant.ToSymbolic()
     context = symbolic.CreateDefaultContext()
     q = MakeVectorVariable(plant.num_positions(), "q")
@@ -289,6 +314,7 @@ def PlanarKinematics_(T):
             self._plant = plant
             self._frame_name = frame_name
             self._coordinates = task_coordinates(coordinates)
+            _check_planar(self._coordinates)
             self._expressed_in = expressed_in
             self._generated = bool(generated)
             self._num_positions = plant.num_positions()
@@ -310,7 +336,7 @@ def PlanarKinematics_(T):
             )
 
         def _construct_copy(self, other, converter=None) -> None:
-            Impl._construct(
+            type(self)._construct(  # this class's, or a subclass's (SpatialKinematics)
                 self,
                 other._plant.ToScalarType[T](),
                 frame_name=other._frame_name,

@@ -32,8 +32,9 @@ from admittance.systems.classical_admittance import ClassicalAdmittance
 from admittance.systems.fixed_reference import FixedReference
 from admittance.systems.flexiforce import FlexiForceSensor
 from admittance.systems.optimal_admittance import OptimalAdmittance
-from admittance.systems.planar_kinematics import PlanarKinematics
+from admittance.systems.planar_kinematics import PlanarKinematics, has_rotation_vector
 from admittance.systems.sensor_fault import SensorFault
+from admittance.systems.spatial_kinematics import SpatialKinematics
 
 __all__ = [
     "AddCommandedPosition",
@@ -48,10 +49,13 @@ __all__ = [
 
 def AddPointKinematics(
     builder: DiagramBuilder, plant: MultibodyPlant, point: ForcePoint
-) -> PlanarKinematics:
-    """X, dX/dt and J of the point's frame, once per evaluation, for its PID and contact."""
+) -> PlanarKinematics | SpatialKinematics:
+    """X, dX/dt and J of the point's frame, once per evaluation, for its PID and contact:
+    ``SpatialKinematics`` when its coordinates hold the rotation vector (rx, ry, rz),
+    ``PlanarKinematics`` otherwise (same ``kinematics`` output layout)."""
+    kind = SpatialKinematics if has_rotation_vector(point.coordinates) else PlanarKinematics
     system = builder.AddSystem(
-        PlanarKinematics(
+        kind(
             plant,
             frame_name=point.frame,
             coordinates=point.coordinates,
@@ -131,11 +135,13 @@ def AddPointPid(
     builder: DiagramBuilder,
     plant: MultibodyPlant,
     point: ForcePoint,
-    kinematics: PlanarKinematics,
+    kinematics: PlanarKinematics | SpatialKinematics,
     desired_velocity_output,
 ) -> CartesianPid:
     """The Cartesian PID of eq. 14-16 at the point (its Xc and its torques are wired by the
-    caller: through :func:`AddCommandedPosition`, and to the plant's actuation)."""
+    caller: through :func:`AddCommandedPosition`, and to the plant's actuation). With the
+    point's gravity compensation or posture task, its ``state`` input reads the plant's
+    state output."""
     system = builder.AddSystem(
         CartesianPid(
             plant,
@@ -146,10 +152,14 @@ def AddPointPid(
             period=point.pid_period,
             coordinates=point.coordinates,
             expressed_in=point.expressed_in,
+            gravity_compensation=point.gravity_compensation,
+            posture=point.posture,
         )
     )
     system.set_name(point.system_name("cartesian_pid"))
     builder.Connect(kinematics.kinematics_output, system.kinematics_input)
+    if system.state_input is not None:
+        builder.Connect(plant.get_state_output_port(), system.state_input)
     builder.Connect(desired_velocity_output, system.commanded_velocity_input)
     return system
 

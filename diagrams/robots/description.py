@@ -20,6 +20,7 @@ import math
 from dataclasses import dataclass, field
 
 from admittance.diagrams.scenario.sections import AdmittanceSection, SensorSection
+from admittance.systems.posture_task import PostureTask
 
 __all__ = ["ForceLaw", "ForcePoint", "SensorChain", "force_law", "sensor_chain"]
 
@@ -80,7 +81,8 @@ class ForcePoint:
     name: str
     # The frame at the contact point (a fingertip frame of the plant).
     frame: str
-    # Task coordinates X of the frame, and the frame they are expressed in.
+    # Task coordinates X of the frame, and the frame they are expressed in: x, y, z, theta
+    # (planar), or x, y, z, rx, ry, rz (rotation vector) in a control frame.
     coordinates: tuple[str, ...] = ("x", "y", "theta")
     expressed_in: str = "world"
     # The axes of X under force control (the others follow Xd under the PID alone).
@@ -92,6 +94,11 @@ class ForcePoint:
     kd: list[float] = field(default_factory=list)
     ki: list[float] = field(default_factory=list)
     pid_period: float = 0.0
+    # The torque interface's gravity compensation, tau += g(q) from the plant (a real
+    # arm's; the paper's arm has none: its integral term carries the weight).
+    gravity_compensation: bool = False
+    # A joint-space posture in the null space of J, for a redundant arm (None = none).
+    posture: PostureTask | None = None
 
     @property
     def num_axes(self) -> int:
