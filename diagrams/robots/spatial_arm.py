@@ -72,6 +72,8 @@ from pydrake.systems.framework import DiagramBuilder
 from admittance.diagrams.robots.description import ForcePoint, force_law, sensor_chain
 from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.diagrams.scenario.spatial_arm import SPATIAL_COORDINATES, SpatialScenario
+from admittance.systems.posture_task import PostureTask
+from admittance.systems.spatial_kinematics import rotation_vector
 
 __all__ = [
     "CONTROL_FRAME",
@@ -85,7 +87,6 @@ __all__ = [
     "SolveSpatialInverseKinematics",
     "SpatialGeometry",
     "example_robot_data_packages",
-    "rotation_vector",
     "spatial_point",
 ]
 
@@ -124,22 +125,6 @@ def example_robot_data_packages() -> dict[str, Path] | None:
     packages = {name: root / name for name in EXAMPLE_ROBOT_PACKAGES if (root / name).is_dir()}
     packages[EXAMPLE_ROBOT_DATA] = root.parent
     return packages
-
-
-def rotation_vector(rotation: np.ndarray) -> np.ndarray:
-    """The rotation vector (axis times angle, rad) of a 3 x 3 rotation matrix (angle < pi)."""
-    cosine = min(1.0, max(-1.0, 0.5 * (np.trace(rotation) - 1.0)))
-    angle = math.acos(cosine)
-    axis = 0.5 * np.array(
-        [
-            rotation[2, 1] - rotation[1, 2],
-            rotation[0, 2] - rotation[2, 0],
-            rotation[1, 0] - rotation[0, 1],
-        ]
-    )
-    if angle < 1e-9:
-        return axis  # sin(angle) ~ angle: the vector itself
-    return axis * (angle / math.sin(angle))
 
 
 @dataclass
@@ -461,7 +446,7 @@ def SolveSpatialInverseKinematics(
         X = plant.CalcRelativeTransform(context, plant.world_frame(), frame)
         error = np.concatenate(
             [
-                rotation_vector((X_WT.rotation() @ X.rotation().inverse()).matrix()),
+                rotation_vector((X_WT.rotation() @ X.rotation().inverse()).matrix().tolist()),
                 X_WT.translation() - X.translation(),
             ]
         )
@@ -502,8 +487,6 @@ def spatial_point(
         "damping": controller.damping,
         "stiffness": controller.stiffness,
     }
-    from admittance.systems.posture_task import PostureTask
-
     pid = scenario.pid
     posture = None
     if plant.num_actuated_dofs() > len(SPATIAL_COORDINATES):

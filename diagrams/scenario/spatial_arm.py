@@ -194,8 +194,8 @@ class SpatialAdmittanceConfig(AdmittanceSection):
 class SpatialPidConfig(PidSection):
     # The Cartesian PID's gains on (x, y, z, rx, ry, rz) of the tool tip in the control
     # frame, eq. 14: N/m and N m/rad, and their D and I counterparts.
-    kp: list[float] = field(default_factory=lambda: [3000.0, 3000.0, 2000.0, 100.0, 100.0, 60.0])
-    kd: list[float] = field(default_factory=lambda: [120.0, 120.0, 100.0, 4.0, 4.0, 2.0])
+    kp: list[float] = field(default_factory=lambda: [5000.0, 5000.0, 2000.0, 100.0, 100.0, 60.0])
+    kd: list[float] = field(default_factory=lambda: [150.0, 150.0, 100.0, 4.0, 4.0, 2.0])
     ki: list[float] = field(default_factory=lambda: [20000.0, 20000.0, 0.0, 200.0, 200.0, 100.0])
 
 
