@@ -219,3 +219,28 @@ def test_simulate_a_urdf_outside_the_repository(tmp_path, capsys):
     assert metrics["kind"] == "spatial" and not metrics["failed"]
     assert metrics["normal_force_max_error"] < 0.01 * 10.0
     assert (out / "spatial_force_path.png").is_file()
+
+
+@needs_robots
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["panda_surface_follow", "ur5_surface_follow"])
+def test_full_follow_meets_the_bounds(name):
+    """The built-in polishing runs: within 5 % of Fr (RMS), no contact loss, under 1 mm
+    and 1 degree over the whole slide (measured: docs/spatial-arm.md)."""
+    from admittance.diagrams.run.spatial_arm import run_spatial
+
+    m = run_spatial(load_scenario(name)).metrics
+    assert m["normal_force_rms_error"] < 0.5
+    assert m["contact_losses"] == 0 and m["in_contact_over_slide"]
+    assert m["path_error_max"] < 1e-3
+    assert m["orientation_error_max"] < 1.0
+
+
+@pytest.mark.parametrize("command", ["stability", "sweep"])
+def test_arm_only_commands_refuse_a_spatial_scenario_in_one_line(command, capsys, tmp_path):
+    from admittance.diagrams.app.cli import main
+
+    args = [command, "panda_surface_press", "--out", str(tmp_path / "out")]
+    assert main(args) == 2
+    error = capsys.readouterr().err.strip()
+    assert "is a spatial-arm scenario (kind: spatial)" in error and "\n" not in error
