@@ -35,6 +35,7 @@ from admittance.systems.optimal_admittance import OptimalAdmittance
 from admittance.systems.planar_kinematics import PlanarKinematics, has_rotation_vector
 from admittance.systems.sensor_fault import SensorFault
 from admittance.systems.spatial_kinematics import SpatialKinematics
+from admittance.systems.wrench_sensor import WrenchInControlFrame, WrenchSensor
 
 __all__ = [
     "AddCommandedPosition",
@@ -70,23 +71,95 @@ def AddPointKinematics(
 
 @dataclass
 class SensorReading:
-    """A point's sensor chain as built: the FlexiForce (None for the ideal sensor, whose
-    reading is the true force itself), the port of the force it reports, its noise."""
+    """A point's sensor chain as built: the FlexiForce or the wrist force/torque sensor
+    (None for the ideal sensor, whose reading is the true force itself), the port of the
+    force it reports (one value per force axis), its noise, and for the wrist sensor the
+    system that reads its wrench in the point's frame."""
 
-    sensor: FlexiForceSensor | None
+    sensor: FlexiForceSensor | WrenchSensor | None
     measured_force_output: object
     random_sources: list[RandomSource] = field(default_factory=list)
+    control_frame: WrenchInControlFrame | None = None
+
+
+def _AddNoise(builder, point: ForcePoint, size: int, std: float, period: float, noise: bool):
+    """A RandomSource of `size` standard normals at `period` (None when there is no noise:
+    an analysis diagram or a zero std), or a zero source; returns (source, output)."""
+    if noise and std > 0:
+        source = builder.AddSystem(RandomSource(RandomDistribution.kGaussian, size, period))
+        source.set_name(point.system_name("sensor_noise"))
+        return source, source.get_output_port(0)
+    zero = builder.AddSystem(ConstantVectorSource([0.0] * size))
+    zero.set_name(point.system_name("no_noise"))
+    return None, zero.get_output_port()
+
+
+def _AddWrenchChain(
+    builder: DiagramBuilder, point: ForcePoint, plant: MultibodyPlant, noise: bool
+) -> SensorReading:
+    """The wrist sensor at the chain's weld and its reading in the point's frame."""
+    chain = point.sensor
+    if plant is None:
+        raise ValueError("sensor.kind wrench: AddSensorChain needs the plant")
+    if chain.faults:
+        raise ValueError("sensor.kind wrench: sensor faults are for the one-axis sensors")
+    sensor = builder.AddSystem(
+        WrenchSensor(
+            plant,
+            chain.weld_joint,
+            bias=chain.bias,
+            force_noise_std=chain.noise_std,
+            torque_noise_std=chain.torque_noise_std,
+            filter_cutoff_hz=chain.filter_cutoff,
+            period=chain.period,
+            tool_mass=chain.tool_mass,
+            tool_com=chain.tool_com,
+        )
+    )
+    sensor.set_name(point.system_name("wrench_sensor"))
+    builder.Connect(plant.get_reaction_forces_output_port(), sensor.reaction_forces_input)
+    builder.Connect(plant.get_body_poses_output_port(), sensor.body_poses_input)
+    frame = builder.AddSystem(
+        WrenchInControlFrame(
+            plant,
+            chain.weld_joint,
+            point.expressed_in,
+            contact_offset=chain.contact_offset,
+            axes=chain.wrench_axes or point.force_axes,
+        )
+    )
+    frame.set_name(point.system_name("wrench_in_control_frame"))
+    builder.Connect(sensor.compensated_wrench_output, frame.wrench_input)
+    builder.Connect(plant.get_body_poses_output_port(), frame.body_poses_input)
+    std = max(chain.noise_std, chain.torque_noise_std)
+    source, noise_output = _AddNoise(
+        builder, point, 6, std, chain.period or chain.noise_period, noise
+    )
+    builder.Connect(noise_output, sensor.noise_input)
+    sources = [] if source is None else [source]
+    return SensorReading(sensor, frame.force_output, sources, frame)
 
 
 def AddSensorChain(
-    builder: DiagramBuilder, point: ForcePoint, contact_force_output, *, noise: bool = True
+    builder: DiagramBuilder,
+    point: ForcePoint,
+    contact_force_output,
+    *,
+    noise: bool = True,
+    plant: MultibodyPlant | None = None,
 ) -> SensorReading:
     """The point's force sensor on the true contact force, its faults and its noise.
 
     The ideal sensor is a wire: its reading is the contact force, with no system to
-    evaluate. Without `noise` (an analysis diagram) the noise input is held at zero.
+    evaluate. Without `noise` (an analysis diagram) the noise input is held at zero. The
+    wrist force/torque sensor (kind "wrench") reads the `plant`'s reaction force at the
+    chain's weld instead of `contact_force_output` (None there), removes the tool's
+    weight and reports the force the tool applies along the point's force axes, in the
+    point's frame (``expressed_in``), positive pushing.
     """
     chain = point.sensor
+    if chain.kind == "wrench":
+        return _AddWrenchChain(builder, point, plant, noise)
     system = None
     if chain.kind == "ideal":
         measured_force_output = contact_force_output
@@ -111,20 +184,13 @@ def AddSensorChain(
     random_sources = []
     if system is None:
         return SensorReading(system, measured_force_output, random_sources)
-    if noise and chain.noise_std > 0:
-        source = builder.AddSystem(
-            RandomSource(RandomDistribution.kGaussian, 1, chain.noise_period)
-        )
-        source.set_name(point.system_name("sensor_noise"))
+    source, noise_output = _AddNoise(builder, point, 1, chain.noise_std, chain.noise_period, noise)
+    if source is not None:
         random_sources.append(source)
         gain = builder.AddSystem(Gain(chain.noise_std, 1))
         gain.set_name(point.system_name("noise_std"))
-        builder.Connect(source.get_output_port(0), gain.get_input_port())
+        builder.Connect(noise_output, gain.get_input_port())
         noise_output = gain.get_output_port()
-    else:
-        zero = builder.AddSystem(ConstantVectorSource([0.0]))
-        zero.set_name(point.system_name("no_noise"))
-        noise_output = zero.get_output_port()
     builder.Connect(noise_output, system.noise_input)
     if chain.faults and fault.noise_input is not None:
         # A noisy fault keeps the same ADC noise the reading had.

@@ -29,14 +29,17 @@ __all__ = ["ForceLaw", "ForcePoint", "SensorChain", "force_law", "sensor_chain"]
 class SensorChain:
     """The force sensor at a point: what it reads, its filter, noise, readout and faults."""
 
-    # "ideal" (the true contact force: a wire, no system) or "flexiforce" (A201 + op-amp
-    # + analog low-pass + ADC noise).
+    # "ideal" (the true contact force: a wire, no system), "flexiforce" (A201 + op-amp
+    # + analog low-pass + ADC noise) or "wrench" (a 6-axis force/torque sensor at a weld
+    # between the flange and the tool, systems/wrench_sensor.py).
     kind: str = "ideal"
-    # Cut-off of the analog low-pass filter after the op-amp, Hz.
+    # Cut-off of the analog low-pass filter after the op-amp (the wrench sensor's
+    # low-pass, 0 = none), Hz.
     filter_cutoff: float = 5000.0
-    # Standard deviation of the measured-force noise at the ADC, N (0 = none).
+    # Standard deviation of the measured-force noise at the ADC (the wrench sensor's on
+    # each force axis), N (0 = none).
     noise_std: float = 0.0
-    # Sample period of the noise (the ADC's period), s.
+    # Sample period of the noise (the ADC's period; the wrench sensor's period if set), s.
     noise_period: float = 0.005
     # Readout period of the sensor, s (0 = a continuous output).
     period: float = 0.0
@@ -46,6 +49,22 @@ class SensorChain:
     drift: float = 0.0
     # Injected sensor faults, (kind, start s, end s, value, noisy), kinds sensor_*.
     faults: list[tuple[str, float, float, float, bool]] = field(default_factory=list)
+    # The wrench sensor's: its constant bias [N x3, N m x3], and the noise std on each
+    # torque axis, N m (0 = none).
+    bias: tuple[float, ...] = (0.0,) * 6
+    torque_noise_std: float = 0.0
+    # The weld joint between the flange (parent) and the tool (child): its frame on the
+    # tool is the sensor frame S.
+    weld_joint: str = ""
+    # The mass the weld carries, kg, and its centre of mass in S, m (weight compensation).
+    tool_mass: float = 0.0
+    tool_com: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    # The tool's contact point in S, m: the moments are taken about it.
+    contact_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    # Indices into [fx, fy, fz, tx, ty, tz] in the point's frame (`expressed_in`) that the
+    # force law reads; empty = the point's force axes (coordinates x, y, z, then the
+    # rotation's three).
+    wrench_axes: tuple[int, ...] = ()
 
 
 @dataclass
