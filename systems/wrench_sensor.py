@@ -91,7 +91,10 @@ def _weld_mount(plant, weld_joint: str) -> dict:
     if int(joint.frame_on_child().body().index()) != body:  # a name shared by two frames
         raise ValueError(f"weld_joint: the frame of {weld_joint!r} on its child is ambiguous")
     return dict(
-        joint_index=int(joint.index()),
+        # The reaction-force port holds one entry per joint in the order of their indices
+        # (Drake's joint ordinals): a plant whose joints were removed (a description's
+        # joints replaced by welds) has gaps in its indices, so the entry is the position.
+        joint_index=[int(i) for i in plant.GetJointIndices()].index(int(joint.index())),
         body_index=body,
         R_BS=R_BS,
         gravity=plant.gravity_field().gravity_vector().tolist(),

@@ -125,6 +125,8 @@ class SpatialLoop:
     plan: TrajectorySource
     force_reference: TrajectorySource
     table_force: TableForce
+    # The wrist force/torque sensor (None for the ideal sensor).
+    sensor: object
     measured_force_output: object
     # q at t = 0 (the inverse kinematics of the plan's start), rad.
     initial_positions: np.ndarray
@@ -215,7 +217,7 @@ def BuildSpatialLoop(scenario: SpatialScenario) -> SpatialLoop:
     split = builder.AddSystem(Demultiplexer([SIZE, SIZE]))
     split.set_name("plan_split")
     builder.Connect(plan.get_output_port(), split.get_input_port())
-    reading = AddSensorChain(builder, point, table_force.contact_force_output)
+    reading = AddSensorChain(builder, point, table_force.contact_force_output, plant=plant)
     kinematics = AddPointKinematics(builder, plant, point)
     pid = AddPointPid(builder, plant, point, kinematics, split.get_output_port(1))
     builder.Connect(pid.actuation_output, plant.get_actuation_input_port())
@@ -256,6 +258,7 @@ def BuildSpatialLoop(scenario: SpatialScenario) -> SpatialLoop:
         plan=plan,
         force_reference=reference,
         table_force=table_force,
+        sensor=reading.sensor,
         measured_force_output=reading.measured_force_output,
         initial_positions=initial_positions,
         random_sources=reading.random_sources,
@@ -297,10 +300,20 @@ def SetSpatialInitialConditions(loop: SpatialLoop, context: Context) -> None:
     """The arm at rest at the plan's start, the noise sources seeded.
 
     With gravity compensation the PID holds the arm at zero error with a zero integral,
-    and the force law starts at E(0) = Fr(0) - F(0) = 0 (Xr(0) = 0).
+    and the force law starts at E(0) = Fr(0) - F(0) = 0 (Xr(0) = 0). A wrist sensor's
+    held (or filtered) reading starts at what it reads at rest in the air: the tool's
+    weight, which its compensation removes.
     """
     scenario, plant = loop.scenario, loop.plant
     loop.diagram.SetRandomContext(context, RandomGenerator(int(scenario.seed)))
     plant_context = plant.GetMyMutableContextFromRoot(context)
     plant.SetPositions(plant_context, loop.initial_positions)
     plant.SetVelocities(plant_context, np.zeros(plant.num_velocities()))
+    sensor = loop.sensor
+    if sensor is not None:
+        sensor_context = sensor.GetMyMutableContextFromRoot(context)
+        weight = sensor.weight_wrench(sensor_context)
+        if sensor.period > 0:
+            sensor_context.SetDiscreteState(weight)
+        elif sensor.filter_time_constant > 0:
+            sensor_context.SetContinuousState(weight)

@@ -88,6 +88,7 @@ __all__ = [
     "SpatialGeometry",
     "example_robot_data_packages",
     "spatial_point",
+    "tool_tip_offset",
 ]
 
 # The names this module gives to what it adds to the plant.
@@ -307,6 +308,15 @@ def _contact_properties(scenario: SpatialScenario) -> ProximityProperties:
     return properties
 
 
+def tool_tip_offset(scenario: SpatialScenario) -> float:
+    """The tool tip's distance from the flange along its z axis, m: the sphere's far point,
+    or the disc's face."""
+    tool = scenario.tool
+    if tool.shape == "sphere":
+        return tool.length + tool.radius
+    return tool.length + 0.5 * tool.thickness
+
+
 def _add_tool(plant: MultibodyPlant, scenario: SpatialScenario, flange) -> tuple[float, float]:
     """The tool body, welded to the flange by TOOL_WELD; returns (tip offset, mass)."""
     tool = scenario.tool
@@ -321,10 +331,11 @@ def _add_tool(plant: MultibodyPlant, scenario: SpatialScenario, flange) -> tuple
     )
     plant.AddJoint(WeldJoint(TOOL_WELD, flange, body.body_frame(), RigidTransform()))
     end = RigidTransform([0.0, 0.0, tool.length])
+    tip = tool_tip_offset(scenario)
     if tool.shape == "sphere":
-        shape, tip = Sphere(tool.radius), tool.length + tool.radius
+        shape = Sphere(tool.radius)
     else:
-        shape, tip = Cylinder(tool.radius, tool.thickness), tool.length + 0.5 * tool.thickness
+        shape = Cylinder(tool.radius, tool.thickness)
     properties = _contact_properties(scenario)
     plant.RegisterCollisionGeometry(body, end, shape, "tool_collision", properties)
     plant.RegisterVisualGeometry(body, end, shape, "tool_visual", [0.8, 0.5, 0.1, 1.0])
@@ -487,6 +498,20 @@ def spatial_point(
         "damping": controller.damping,
         "stiffness": controller.stiffness,
     }
+    sensor = scenario.sensor
+    chain = sensor_chain(sensor, noise_period=period, period=period)
+    if sensor.kind == "wrench":
+        chain = sensor_chain(
+            sensor,
+            noise_period=sensor.period or period,
+            period=sensor.period or period,
+            weld_joint=TOOL_WELD,
+            tool_mass=scenario.tool.mass,
+            tool_com=(0.0, 0.0, 0.5 * scenario.tool.length),
+            contact_offset=(0.0, 0.0, tool_tip_offset(scenario)),
+            bias=tuple(sensor.bias),
+            torque_noise_std=sensor.torque_noise_std,
+        )
     pid = scenario.pid
     posture = None
     if plant.num_actuated_dofs() > len(SPATIAL_COORDINATES):
@@ -499,7 +524,7 @@ def spatial_point(
         coordinates=SPATIAL_COORDINATES,
         expressed_in=CONTROL_FRAME,
         force_axes=(NORMAL_AXIS,),
-        sensor=sensor_chain(scenario.sensor, noise_period=period, period=period),
+        sensor=chain,
         law=force_law(controller.kind, scenario.admittance, period=period, baseline=baseline),
         kp=list(pid.kp),
         kd=list(pid.kd),

@@ -66,7 +66,7 @@ SPATIAL_COORDINATES = ("x", "y", "z", "rx", "ry", "rz")
 SPATIAL_CONTROLLER_KINDS = ("optimal_admittance", "pid_only", "classical_admittance")
 #: sensor.kind of a spatial arm: the contact engine's force along the control frame's z
 #: (ideal), or the wrist's 6-axis force/torque sensor (wrench).
-SPATIAL_SENSOR_KINDS = ("ideal",)
+SPATIAL_SENSOR_KINDS = ("ideal", "wrench")
 #: tool.shape.
 TOOL_SHAPES = ("sphere", "disc")
 
@@ -178,14 +178,15 @@ class SpatialControllerConfig(ControllerSection):
 @dataclass
 class SpatialAdmittanceConfig(AdmittanceSection):
     # Gamma of eq. 10 on z (K is pid.kp[2]): the force loop crosses over near
-    # Gamma K k_eff = 10 rad/s (k_eff, the PID's stiffness in series with the contact's), well
-    # under the contact's resonance (~200 rad/s with the arm's apparent mass); 2e-5
+    # Gamma K k_eff = 24 rad/s (k_eff, the PID's stiffness in series with the contact's),
+    # under the contact's resonance (~220 rad/s with the arm's apparent mass); 2e-5
     # bounces on the first contact (docs/spatial-arm.md).
-    gamma: float = 2.5e-6
+    gamma: float = 6.0e-6
     # alpha of eq. 7 and 10, s (sampled at time_step: 0, as the gripper's).
     alpha: float = 0.0
-    # Largest reference offset into the table, m.
-    max_push: float = 0.02
+    # Largest reference offset into the table, m (a table 5 mm low and tilted 10 degrees
+    # across a 10 cm slide needs about 28 mm).
+    max_push: float = 0.05
     # Largest reference offset away from it, m.
     max_retract: float = 0.05
 
@@ -202,9 +203,20 @@ class SpatialPidConfig(PidSection):
 @dataclass
 class SpatialSensorConfig(SensorSection):
     # ideal: the contact engine's force of the tool on the table along the control frame's
-    # z, read at time_step (no noise, no filter).
+    # z (no noise, no filter); wrench: a 6-axis force/torque sensor at the weld between the
+    # flange and the tool (tool_weld), its weight compensated from tool.mass, its force
+    # read along the control frame's z.
     kind: str = "ideal"
+    # wrench: the noise's standard deviation on each force axis, N,
     noise_std: float = 0.0
+    # and on each torque axis, N m.
+    torque_noise_std: float = 0.0
+    # wrench: cut-off of its first-order low-pass, Hz (0 = none).
+    filter_cutoff: float = 0.0
+    # wrench: its readout period, s (0 = time_step).
+    period: float = 0.0
+    # wrench: its constant bias (fx, fy, fz in N, tx, ty, tz in N m), in its own frame.
+    bias: list[float] = field(default_factory=lambda: [0.0] * 6)
 
 
 @dataclass
@@ -290,7 +302,9 @@ SPATIAL_RANGES: dict[str, Range] = {
     "admittance.max_push": Range("(0, 0.1]", "m"),
     "admittance.max_retract": Range("(0, 0.2]", "m"),
     "sensor.noise_std": Range("[0, 10]", "N"),
-    "sensor.filter_cutoff": Range("(0, 1e6]", "Hz"),
+    "sensor.torque_noise_std": Range("[0, 1]", "N m"),
+    "sensor.filter_cutoff": Range("[0, 1e6]", "Hz", text="0 (none) or in (0, 1e6] Hz"),
+    "sensor.period": Range("[1e-4, 0.1]", or_zero=True, text="0 (time_step) or in [1e-4, 0.1] s"),
     "logging.period": RANGES["logging.period"],
 }
 
@@ -346,6 +360,18 @@ def validate_spatial(scenario: SpatialScenario) -> SpatialScenario:
     require_one_of(s.tool.shape, "tool.shape", TOOL_SHAPES)
     require_one_of(s.controller.kind, "controller.kind", SPATIAL_CONTROLLER_KINDS)
     require_one_of(s.sensor.kind, "sensor.kind", SPATIAL_SENSOR_KINDS)
+    require(
+        _finite_list(s.sensor.bias, 6) and all(abs(b) <= 100 for b in s.sensor.bias),
+        "sensor.bias",
+        "6 finite values (fx, fy, fz N, tx, ty, tz N m) within +-100",
+        s.sensor.bias,
+    )
+    require(
+        s.sensor.kind == "wrench" or (s.sensor.noise_std == 0 and s.sensor.torque_noise_std == 0),
+        "sensor.noise_std",
+        "0 with sensor.kind ideal (the ideal sensor has no noise; use wrench)",
+        s.sensor.noise_std,
+    )
     require(
         s.name not in ("", ".", "..") and not _NOT_IN_A_NAME.search(s.name),
         "name",
