@@ -168,9 +168,10 @@ class SpatialControllerConfig(ControllerSection):
     # admittance_controller), with its gains:
     kind: str = "optimal_admittance"
     # classical_admittance: virtual mass, kg,
-    mass: float = 1.0
-    # damping, N s/m,
-    damping: float = 400.0
+    mass: float = 0.9
+    # damping, N s/m (matched to the paper's law: 1 / (Gamma K) = 83 N s/m gives the same
+    # integral action; the mass makes the force loop critically damped, D^2 / (4 k_eff)),
+    damping: float = 83.0
     # virtual spring, N/m (0 = mass-damper).
     stiffness: float = 0.0
 
