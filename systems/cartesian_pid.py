@@ -423,8 +423,8 @@ class CartesianPid(Diagram):
         tau = clip(J(q)^T F_PID, -effort_limit, effort_limit)            (eq. 16)
 
     X of the controlled frame, its rate J v and J come from the ``kinematics`` input: the
-    output of a ``PlanarKinematics`` of the same plant, frame and task space
-    (systems/planar_kinematics.py). The task space is given at construction: which
+    output of a ``PlanarKinematics`` (or ``SpatialKinematics``, for rx, ry, rz) of the
+    same plant, frame and task space. The task space is given at construction: which
     coordinates of the frame (TASK_COORDINATES: its origin's x, y, z, its rotation theta
     about z, or its rotation vector rx, ry, rz) measured in which frame; by default
     (x, y, theta) in world, the planar arm. A finger of a hand is controlled on (x, y) of

@@ -105,27 +105,29 @@ class JointSpaceTorque:
         plant, context = self.plant, self._context
         state = np.asarray(state)
         plant.SetPositionsAndVelocities(context, state)
-        floats = state.dtype != object
-        torque = np.zeros(self._num_velocities)
         if self.gravity_compensation:
-            torque = torque - plant.CalcGravityGeneralizedForces(context)
+            torque = -plant.CalcGravityGeneralizedForces(context)
+        else:
+            torque = np.zeros(self._num_velocities)
         if self.posture is None:
             return torque
         q, v = state[: self._num_positions], state[self._num_positions :]
-        rest = self._kp * (self._q0 - q) - self._kd * v
+        rest = self._kp * (self._q0 - q) - self._kd * v  # tau0
         mass = plant.CalcMassMatrix(context)
         jacobian = np.asarray(jacobian)
-        if floats:
-            inverse_mass_jt = np.linalg.solve(mass, jacobian.T)  # M^-1 J^T
-            inverse_mass_rest = np.linalg.solve(mass, rest)
+        size = jacobian.shape[0]
+        if state.dtype != object:  # one solve for M^-1 [J^T, tau0], one for Lambda
+            columns = np.empty((self._num_velocities, size + 1))
+            columns[:, :size] = jacobian.T
+            columns[:, size] = rest
+            solved = np.linalg.solve(mass, columns)
+            inertia = jacobian @ solved[:, :size]  # J M^-1 J^T, the inverse of Lambda
+            inertia.flat[:: size + 1] += _RELATIVE_DAMPING / size * inertia.trace()
+            force = np.linalg.solve(inertia, jacobian @ solved[:, size])
         else:
             inverse_mass = inv(mass)
-            inverse_mass_jt = inverse_mass @ jacobian.T
-            inverse_mass_rest = inverse_mass @ rest
-        inertia = jacobian @ inverse_mass_jt  # J M^-1 J^T, the inverse of Lambda
-        size = inertia.shape[0]
-        diagonal = [inertia[i, i] if floats else inertia[i, i].value() for i in range(size)]
-        damped = inertia + _RELATIVE_DAMPING * float(np.mean(diagonal)) * np.eye(size)
-        task = jacobian @ inverse_mass_rest  # J M^-1 tau0
-        force = np.linalg.solve(damped, task) if floats else inv(damped) @ task
+            inertia = jacobian @ inverse_mass @ jacobian.T
+            trace = sum(inertia[i, i].value() for i in range(size))
+            damped = inertia + _RELATIVE_DAMPING * trace / size * np.eye(size)
+            force = inv(damped) @ (jacobian @ (inverse_mass @ rest))  # Lambda J M^-1 tau0
         return torque + rest - jacobian.T @ force  # + (I - J^T Jbar^T) tau0

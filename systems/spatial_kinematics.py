@@ -96,15 +96,38 @@ def rotation_vector(matrix) -> list:
         z = 0.5 * root(1.0 - r00 - r11 + r22)
         s = 0.25 / z
         w, x, y = (r10 - r01) * s, (r02 + r20) * s, (r12 + r21) * s
+    return _quaternion_log(w, x, y, z)
+
+
+def _quaternion_log(w, x, y, z) -> list:
+    """The rotation vector of the unit quaternion (w, x, y, z), angle in [0, pi]."""
     if _value(w) < 0.0:  # q and -q are one rotation: take the angle in [0, pi]
         w, x, y, z = -w, -x, -y, -z
     squared = x * x + y * y + z * z
     if _value(squared) < _SMALL_SQUARED:
         factor = 2.0 / w  # 2 atan2(n, w) / n -> 2 / w as n -> 0
+    elif isinstance(squared, float):
+        norm = math.sqrt(squared)
+        factor = 2.0 * math.atan2(norm, w) / norm
     else:
-        norm = root(squared)
-        factor = 2.0 * (math.atan2(norm, w) if isinstance(norm, float) else atan2(norm, w)) / norm
+        norm = sqrt(squared)
+        factor = 2.0 * atan2(norm, w) / norm
     return [factor * x, factor * y, factor * z]
+
+
+def _quaternion(vector) -> tuple:
+    """The unit quaternion (w, x, y, z) of exp([r]x): (cos(|r|/2), sin(|r|/2) r / |r|)."""
+    rx, ry, rz = vector[0], vector[1], vector[2]
+    squared = rx * rx + ry * ry + rz * rz
+    if _value(squared) < 1e-12:  # series, exact to rounding there
+        w, k = 1.0 - squared / 8.0, 0.5 - squared / 48.0
+    elif isinstance(squared, float):
+        angle = math.sqrt(squared)
+        w, k = math.cos(0.5 * angle), math.sin(0.5 * angle) / angle
+    else:
+        angle = sqrt(squared)
+        w, k = cos(0.5 * angle), sin(0.5 * angle) / angle
+    return w, k * rx, k * ry, k * rz
 
 
 def rotation_matrix(vector) -> list:
@@ -134,12 +157,16 @@ def orientation_error(commanded, measured) -> list:
     one: e_R is its rotation vector in E (angle |e_R| in [0, pi]). Writing R = exp([dr]x) R_d
     for a small deviation dr, e_R = -dr + O(|dr|^2), and d(e_R)/dt = omega_d - omega + O(|e_R|)
     (from d(R_d R^T)/dt = [omega_d - R_d R^T omega]x R_d R^T), the rate the PID uses.
+    Computed on unit quaternions: q_d q^-1 = (a, u)(b, -v) = (a b + u.v, b u - a v - u x v).
     """
-    desired, actual = rotation_matrix(commanded), rotation_matrix(measured)
-    relative = [
-        [sum(desired[i][k] * actual[j][k] for k in range(3)) for j in range(3)] for i in range(3)
-    ]
-    return rotation_vector(relative)
+    a, u0, u1, u2 = _quaternion(commanded)
+    b, v0, v1, v2 = _quaternion(measured)
+    return _quaternion_log(
+        a * b + u0 * v0 + u1 * v1 + u2 * v2,
+        b * u0 - a * v0 - (u1 * v2 - u2 * v1),
+        b * u1 - a * v1 - (u2 * v0 - u0 * v2),
+        b * u2 - a * v2 - (u0 * v1 - u1 * v0),
+    )
 
 
 class SpatialFrameKinematics(PlanarFrameKinematics):
@@ -149,14 +176,18 @@ class SpatialFrameKinematics(PlanarFrameKinematics):
     angular velocity in E (``PlanarFrameKinematics.jacobian``).
     """
 
+    def __init__(self, plant, frame_name: str, **task) -> None:
+        super().__init__(plant, frame_name, **task)
+        # Where each coordinate is in (x, y, z, rx, ry, rz).
+        self._pose_indices = [SPATIAL_COORDINATES.index(c) for c in self.coordinates]
+
     def pose(self):
         """X at the last state set: position of F's origin and rotation vector of R_EF."""
         X_EF = self.plant.CalcRelativeTransform(self._context, self._world, self.frame)
-        matrix = X_EF.GetAsMatrix34()
-        rotation = dict(zip(ROTATION_COORDINATES, rotation_vector(matrix), strict=True))
-        return np.array(
-            [rotation[c] if c in rotation else matrix["xyz".index(c), 3] for c in self.coordinates]
-        )
+        # Drake's quaternion of R_EF (its own Shepperd's method, in C++), then its log.
+        w, x, y, z = X_EF.rotation().ToQuaternion().wxyz().tolist()
+        values = X_EF.translation().tolist() + _quaternion_log(w, x, y, z)
+        return np.array([values[i] for i in self._pose_indices])
 
 
 def frame_kinematics(plant, frame_name: str, *, coordinates, expressed_in: str = "world"):

@@ -20,14 +20,19 @@ from pydrake.common.eigen_geometry import AngleAxis  # noqa: E402
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix  # noqa: E402
 from pydrake.multibody.parsing import Parser  # noqa: E402
 from pydrake.multibody.plant import MultibodyPlant  # noqa: E402
-from pydrake.multibody.tree import FixedOffsetFrame, JacobianWrtVariable  # noqa: E402
+from pydrake.multibody.tree import (  # noqa: E402
+    FixedOffsetFrame,
+    JacobianWrtVariable,
+    MultibodyForces,
+)
 from pydrake.systems.analysis import Simulator  # noqa: E402
 from pydrake.systems.framework import DiagramBuilder  # noqa: E402
 from pydrake.systems.primitives import ConstantVectorSource  # noqa: E402
 
 from admittance.diagrams.loop.point import AddPointKinematics, AddPointPid  # noqa: E402
 from admittance.diagrams.robots.description import ForcePoint  # noqa: E402
-from admittance.systems.cartesian_pid import PostureTask  # noqa: E402
+from admittance.systems.cartesian_pid import CartesianPid, PostureTask  # noqa: E402
+from admittance.systems.optimal_admittance import OptimalAdmittance  # noqa: E402
 from admittance.systems.spatial_kinematics import (  # noqa: E402
     SPATIAL_COORDINATES,
     SpatialKinematics,
@@ -51,17 +56,17 @@ KI = [4000.0] * 3 + [200.0] * 3
 POSTURE_KP, POSTURE_KD = 10.0, 4.0
 
 
-def _panda_folder() -> Path:
+def _description_folder(package: str = "panda_description") -> Path:
     for base in map(Path, site.getsitepackages()):
-        folder = base / "cmeel.prefix/share/example-robot-data/robots/panda_description"
+        folder = base / "cmeel.prefix/share/example-robot-data/robots" / package
         if folder.is_dir():
             return folder
-    pytest.skip("example-robot-data's panda_description is not installed")
+    pytest.skip(f"example-robot-data's {package} is not installed")
 
 
 def panda(time_step: float = 1e-3, *, surface: RigidTransform | None = None) -> MultibodyPlant:
     """The Panda welded at its base, a motor on each joint, optionally a frame 'surface'."""
-    folder = _panda_folder()
+    folder = _description_folder()
     plant = MultibodyPlant(time_step)
     parser = Parser(plant)
     parser.package_map().Add("panda_description", str(folder))
@@ -219,14 +224,15 @@ def _hold_loop(
     kp=KP,
     kd=KD,
     ki=KI,
+    frame=TOOL,
 ):
-    """The Panda (free space, gravity) under the 6-D PID wired by loop.point, holding the
-    pose `commanded` (X in world). Returns (diagram, kinematics, pid)."""
+    """The arm (free space, gravity) under the 6-D PID wired by loop.point, holding the
+    pose `commanded` of `frame` (X in world). Returns (diagram, kinematics, pid)."""
     builder = DiagramBuilder()
     builder.AddSystem(plant)
     point = ForcePoint(
         name="",
-        frame=TOOL,
+        frame=frame,
         coordinates=SPATIAL_COORDINATES,
         force_axes=(2,),
         kp=list(kp),
@@ -256,6 +262,15 @@ def _run(diagram, plant, q_start, duration, *, record=None):
         if record is not None:
             record(context)
     return context
+
+
+def _step_target(plant, q, frame=TOOL) -> RigidTransform:
+    """The pose of `frame` at q moved 5 cm along world x and turned 10 degrees about z."""
+    start = _pose(plant, q, frame)
+    return RigidTransform(
+        RotationMatrix.MakeZRotation(math.radians(10.0)) @ start.rotation(),
+        start.translation() + [0.05, 0.0, 0.0],
+    )
 
 
 def _errors(pid, context):
@@ -308,11 +323,7 @@ def test_the_pid_with_gravity_compensation_tracks_a_step_in_six_dimensions():
     the PD alone has zero steady error in free space; after 1 s: < 1 mm and < 0.5 degree
     (measured 2026-12-02: 0.03 mm, 0.004 degree)."""
     plant = panda()
-    start = _pose(plant, READY)
-    target = RigidTransform(
-        RotationMatrix.MakeZRotation(math.radians(10.0)) @ start.rotation(),
-        start.translation() + [0.05, 0.0, 0.0],
-    )
+    target = _step_target(plant, READY)
     posture = PostureTask(READY, POSTURE_KP, POSTURE_KD)
     diagram, _, pid = _hold_loop(plant, _pose_vector(target), posture=posture, ki=[0.0] * 6)
     context = _run(diagram, plant, READY, 1.0)
@@ -324,7 +335,32 @@ def test_the_pid_with_gravity_compensation_tracks_a_step_in_six_dimensions():
     assert _errors(pid, context) == pytest.approx((position, angle), abs=1e-6)
 
 
-def _apparent_inertia(plant, q):
+def test_the_same_pid_tracks_the_step_on_the_ur5():
+    """Any arm: the UR5's published URDF (6 joints, not redundant: J is square and the
+    posture's null space is empty), its actuators and effort limits from the URDF's
+    transmissions, the tool frame tool0, kd from its own apparent inertia (zeta = 0.8).
+    The same step as the Panda's, after 1 s: < 1 mm and < 0.5 degree (measured
+    2026-12-02: 0.001 mm, 0.001 degree)."""
+    folder = _description_folder("ur_description")
+    plant = MultibodyPlant(1e-3)
+    parser = Parser(plant)
+    parser.package_map().Add("ur_description", str(folder))
+    parser.AddModels(str(folder / "urdf/ur5_robot.urdf"))  # its link "world" welds the base
+    plant.Finalize()
+    q = np.array([0.0, -1.2, 1.5, -1.9, -math.pi / 2, 0.0])
+    _, _, _, inertia = _apparent_inertia(plant, q, "tool0")
+    damping = 2.0 * 0.8 * np.sqrt(np.array(KP) * np.diag(inertia))
+    target = _step_target(plant, q, "tool0")
+    posture = PostureTask(q, POSTURE_KP, POSTURE_KD)
+    diagram, _, pid = _hold_loop(
+        plant, _pose_vector(target), posture=posture, kd=damping, ki=[0.0] * 6, frame="tool0"
+    )
+    context = _run(diagram, plant, q, 1.0)
+    position, angle = _errors(pid, context)
+    assert position < 1e-3 and math.degrees(angle) < 0.5, (position, math.degrees(angle))
+
+
+def _apparent_inertia(plant, q, frame=TOOL):
     """(M, J (6 x nv, rows x, y, z, wx, wy, wz in world), Lambda) at q, from the plant."""
     context = plant.CreateDefaultContext()
     plant.SetPositions(context, q)
@@ -332,7 +368,7 @@ def _apparent_inertia(plant, q):
     spatial = plant.CalcJacobianSpatialVelocity(
         context,
         JacobianWrtVariable.kV,
-        plant.GetFrameByName(TOOL),
+        plant.GetFrameByName(frame),
         np.zeros(3),
         plant.world_frame(),
         plant.world_frame(),
@@ -415,3 +451,112 @@ def test_the_posture_moves_the_elbow_to_q0_without_moving_the_tool():
     remaining = np.linalg.norm(q - q0) / np.linalg.norm(READY - q0)
     assert remaining < 0.05, remaining
     assert worst[0] < 1e-4 and math.degrees(worst[1]) < 0.05, worst
+
+
+# --- the paper's law on a subset of the six axes ----------------------------------------------
+
+
+@pytest.mark.parametrize("axes", [(2,), (2, 3, 4)])
+def test_the_admittance_law_runs_on_any_subset_of_six_axes(axes):
+    """Eq. 10 (alpha = 0) on a constant force error E: dXr_i/dt = Gamma K_i E_i on each
+    force axis i (K_i the PID's Kp there: N/m on z, N m/rad on rx, ry), Xr = 0 on the
+    others. After 0.1 s: Xr_i = Gamma K_i E_i 0.1, by hand."""
+    point = ForcePoint(name="", frame=TOOL, coordinates=SPATIAL_COORDINATES, force_axes=axes)
+    point.kp = list(KP)
+    block = OptimalAdmittance(
+        gamma=1e-5,
+        alpha=0.0,
+        stiffness=point.force_axis_stiffness,
+        force_axes=list(axes),
+        num_axes=6,
+        max_push=1.0,
+        max_retract=1.0,
+    )
+    errors = np.array([10.0, -2.0, 3.0][: len(axes)])  # N on z, N m on the tilts
+    simulator = Simulator(block)
+    context = simulator.get_mutable_context()
+    block.measured_force_input.FixValue(context, np.zeros(len(axes)))
+    block.desired_force_input.FixValue(context, errors)
+    block.set_initial_force_error(context, errors)
+    simulator.AdvanceTo(0.1)
+    expected = np.zeros(6)
+    expected[list(axes)] = 1e-5 * np.array([KP[a] for a in axes]) * errors * 0.1
+    offset = block.reference_offset_output.Eval(context)
+    np.testing.assert_allclose(offset, expected, rtol=1e-9, atol=1e-15)
+
+
+# --- the PID's joint-space terms, at one state ----------------------------------------------
+
+
+def _pid_torque(pid, plant, q, *, converted=False):
+    """The PID's torque at rest at q, commanded to where the tool is (zero error)."""
+    state = np.r_[q, np.zeros(plant.num_velocities())]
+    kinematics = _kinematics(SpatialKinematics(plant, frame_name=TOOL), state)
+    system = pid.ToAutoDiffXd() if converted else pid
+    context = system.CreateDefaultContext()
+    system.GetInputPort("kinematics").FixValue(context, kinematics)
+    system.GetInputPort("state").FixValue(
+        context, InitializeAutoDiff(state)[:, 0] if converted else state
+    )
+    system.GetInputPort("commanded_position").FixValue(context, kinematics[:6])
+    system.GetInputPort("commanded_velocity").FixValue(context, np.zeros(6))
+    torque = system.GetOutputPort("actuation").Eval(context)
+    return np.array([t.value() for t in torque]) if converted else torque
+
+
+def test_the_state_input_exists_only_with_gravity_compensation_or_a_posture(
+    panda_with_surface,
+):
+    arguments = dict(frame_name=TOOL, coordinates=SPATIAL_COORDINATES, kp=KP, kd=KD, ki=KI)
+    assert CartesianPid(panda_with_surface, **arguments).state_input is None
+    for extra in [dict(gravity_compensation=True), dict(posture=PostureTask(READY))]:
+        pid = CartesianPid(panda_with_surface, **arguments, **extra)
+        assert pid.state_input.size() == 18
+
+
+def test_at_zero_error_the_torque_is_the_static_holding_torque_plus_a_null_space_posture(
+    panda_with_surface,
+):
+    """At rest with zero error, F_PID = 0: tau = g(q) + N^T tau0. g(q) is checked against
+    Drake's inverse dynamics at rest, zero acceleration, under the plant's force elements
+    (gravity), and N^T tau0
+    against the definition of dynamic consistency: it accelerates no task coordinate,
+    J M^-1 N^T tau0 = 0, while tau0 itself would; up to the damping's leak, at most a
+    fraction eps / lambda_min(J M^-1 J^T) of tau0's (measured 2026-12-02: 1.0e-6, under
+    that bound of 3.9e-4)."""
+    plant = panda_with_surface
+    q = READY + np.r_[0.1, -0.2, 0.3, 0.1, -0.2, 0.1, 0.2, 0.0, 0.0]
+    arguments = dict(frame_name=TOOL, coordinates=SPATIAL_COORDINATES, kp=KP, kd=KD, ki=KI)
+    gravity_only = CartesianPid(plant, **arguments, gravity_compensation=True)
+    context, mass, jacobian, _ = _apparent_inertia(plant, q)
+    weight = MultibodyForces(plant)
+    plant.CalcForceElementsContribution(context, weight)  # gravity, a force element
+    holding = plant.CalcInverseDynamics(context, np.zeros(plant.num_velocities()), weight)
+    np.testing.assert_allclose(_pid_torque(gravity_only, plant, q), holding, atol=1e-9)
+    posture = PostureTask(READY, kp=10.0, kd=4.0)
+    pid = CartesianPid(plant, **arguments, gravity_compensation=True, posture=posture)
+    null_space = _pid_torque(pid, plant, q) - holding
+    rest = 10.0 * (READY - q)
+    task_acceleration = jacobian @ np.linalg.solve(mass, null_space)
+    unprojected = np.linalg.norm(jacobian @ np.linalg.solve(mass, rest))
+    # The damping eps = 1e-6 mean diag(A), A = J M^-1 J^T, leaks eps / lambda_min(A) of it.
+    inverse_inertia = jacobian @ np.linalg.solve(mass, jacobian.T)
+    leak = 1e-6 * np.trace(inverse_inertia) / 6 / np.linalg.eigvalsh(inverse_inertia)[0]
+    assert leak < 1e-3
+    ratio = np.linalg.norm(task_acceleration) / unprojected
+    assert ratio < leak, (ratio, leak)
+    assert np.linalg.norm(null_space) > 0.1  # and it is there
+    # Converted to AutoDiffXd (Linearize): the same torque.
+    converted = _pid_torque(pid, plant, q, converted=True)
+    np.testing.assert_allclose(converted, _pid_torque(pid, plant, q), atol=1e-9)
+    # Sampled (1 ms): the torque latched at a sample is the same law's.
+    sampled = CartesianPid(plant, **arguments, period=1e-3, gravity_compensation=True)
+    context = sampled.CreateDefaultContext()
+    state = np.r_[q, np.zeros(plant.num_velocities())]
+    kinematics = _kinematics(SpatialKinematics(plant, frame_name=TOOL), state)
+    sampled.kinematics_input.FixValue(context, kinematics)
+    sampled.state_input.FixValue(context, state)
+    sampled.commanded_position_input.FixValue(context, kinematics[:6])
+    sampled.commanded_velocity_input.FixValue(context, np.zeros(6))
+    held = sampled.EvalUniquePeriodicDiscreteUpdate(context).get_vector(1).CopyToVector()
+    np.testing.assert_allclose(held, holding, atol=1e-9)

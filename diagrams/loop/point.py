@@ -247,7 +247,7 @@ def AddForceController(builder: DiagramBuilder, point: ForcePoint):
             alpha=law.alpha,
             # K of eq. 10 is the PID's stiffness on the force axis (docs/paper-notes.md,
             # section 4).
-            stiffness=point.stiffness,
+            stiffness=point.force_axis_stiffness,
             force_axes=axes,
             num_axes=size,
             period=law.period,

@@ -129,6 +129,12 @@ class ForcePoint:
         section 4)."""
         return float(self.kp[self.force_axes[0]])
 
+    @property
+    def force_axis_stiffness(self) -> list[float]:
+        """K of eq. 10 on each force axis: the PID's Kp there (N/m on a position, N m/rad
+        on a rotation: one force law may hold both, e.g. a normal force and two tilts)."""
+        return [float(self.kp[axis]) for axis in self.force_axes]
+
     def system_name(self, role: str) -> str:
         """The name of this point's system that plays `role` (``finger1_cartesian_pid``)."""
         return f"{self.name}_{role}" if self.name else role
