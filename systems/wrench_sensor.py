@@ -43,7 +43,7 @@ __all__ = [
     "WrenchInControlFrame_",
     "WrenchSensor",
     "WrenchSensor_",
-    "sensor_frame_in_body",
+    "carried_mass_and_com",
 ]
 
 #: The names of the six components of a wrench, in the order of every 6-vector here.
@@ -66,20 +66,14 @@ def _nonnegative(name: str, value: float, unit: str) -> float:
     return number
 
 
-def sensor_frame_in_body(plant, frame_name: str) -> tuple[int, list[list[float]], list[float]]:
-    """(body index, R_BF rows, p_BF) of a plant frame F on its body B; "world" is the world
-    frame. Used to read F's pose from the plant's body poses."""
-    frame = plant.world_frame() if frame_name == "world" else plant.GetFrameByName(frame_name)
-    X_BF = frame.GetFixedPoseInBodyFrame()
-    return (
-        int(frame.body().index()),
-        X_BF.rotation().matrix().tolist(),
-        X_BF.translation().tolist(),
-    )
+def _frame_in_body(frame) -> tuple[int, list[list[float]]]:
+    """(body index, R_BF rows) of a plant frame F fixed in its body B: what reads F's
+    orientation from the plant's body poses."""
+    return int(frame.body().index()), frame.GetFixedPoseInBodyFrame().rotation().matrix().tolist()
 
 
-def _weld_mount(plant, weld_joint: str) -> dict:
-    """What the sensor needs of the plant: the weld's index, S on the tool, gravity."""
+def _weld(plant, weld_joint: str):
+    """The weld joint named `weld_joint`, or ValueError naming the key."""
     if not plant.HasJointNamed(weld_joint):
         raise ValueError(f"weld_joint: the plant has no joint named {weld_joint!r}")
     joint = plant.GetJointByName(weld_joint)
@@ -87,9 +81,13 @@ def _weld_mount(plant, weld_joint: str) -> dict:
         raise ValueError(
             f"weld_joint: {weld_joint!r} is a {joint.type_name()} joint; a weld is needed"
         )
-    body, R_BS, p_BS = sensor_frame_in_body(plant, joint.frame_on_child().name())
-    if int(joint.frame_on_child().body().index()) != body:  # a name shared by two frames
-        raise ValueError(f"weld_joint: the frame of {weld_joint!r} on its child is ambiguous")
+    return joint
+
+
+def _weld_mount(plant, weld_joint: str) -> dict:
+    """What the sensor needs of the plant: the weld's index, S on the tool, gravity."""
+    joint = _weld(plant, weld_joint)
+    body, R_BS = _frame_in_body(joint.frame_on_child())
     return dict(
         # The reaction-force port holds one entry per joint in the order of their indices
         # (Drake's joint ordinals): a plant whose joints were removed (a description's
@@ -99,6 +97,40 @@ def _weld_mount(plant, weld_joint: str) -> dict:
         R_BS=R_BS,
         gravity=plant.gravity_field().gravity_vector().tolist(),
     )
+
+
+def carried_mass_and_com(plant, weld_joint: str) -> tuple[float, list[float]]:
+    """The mass the weld carries (kg) and its centre of mass in S (m), from the plant.
+
+    What the weld carries: its child body and every body joined to it outward (each
+    joint's child whose parent is already carried), in the plant's default
+    configuration. This is a perfectly calibrated tool; a scenario may give other values.
+    """
+    joint = _weld(plant, weld_joint)
+    carried = {joint.child_body().index()}
+    joints = [plant.get_joint(index) for index in plant.GetJointIndices()]
+    grew = True
+    while grew:
+        grew = False
+        for other in joints:
+            if other.parent_body().index() in carried and (
+                other.child_body().index() not in carried
+            ):
+                carried.add(other.child_body().index())
+                grew = True
+    context = plant.CreateDefaultContext()
+    mass, moment_W = 0.0, np.zeros(3)
+    for index in carried:
+        body = plant.get_body(index)
+        body_mass = body.get_mass(context)
+        p_WBcm = plant.EvalBodyPoseInWorld(context, body).multiply(
+            body.CalcCenterOfMassInBodyFrame(context)
+        )
+        mass += body_mass
+        moment_W += body_mass * p_WBcm
+    X_WS = joint.frame_on_child().CalcPoseInWorld(context)
+    com_W = moment_W / mass if mass > 0 else X_WS.translation()
+    return mass, X_WS.inverse().multiply(com_W).tolist()
 
 
 # Small 3-vector arithmetic on lists: the same code for floats and AutoDiffXd, and about
@@ -142,17 +174,21 @@ def WrenchSensor_(T):
 
         The low-pass is the sensor's own (its electronics), so bias and noise enter after
         it and the compensation (a controller's step, as in ros2's admittance_controller)
-        acts on the reading. The readout period h holds the reading between samples; with
-        f_c = 0 it is a zero-order hold, ``x[k+1] = w[k]``. With neither filter nor period
+        acts on the reading. The readout period h holds x between samples (one discrete
+        group of 6; Drake caches the raw reading until the next sample or noise draw, the
+        compensated one follows the sensor's orientation); with f_c = 0 it is a
+        zero-order hold, ``x[k+1] = w[k]``. With neither filter nor period
         the reading feeds through from ``reaction_forces``: on a continuous plant those
         depend on the actuation, so a loop closed through them is algebraic (Drake says
         so at Build); give it a filter or a period, or use a discrete plant.
 
         The compensation removes the weight of a tool at rest. It does not remove the
-        tool's inertial forces: an accelerating tool adds m a to the reading (and the
-        moment c x m a). A slide at 2 cm/s reached in 0.2 s accelerates at 0.1 m/s^2:
-        0.05 N for a 0.5 kg tool, 0.5 % of a 10 N press; at constant speed it is zero.
-        ``tool_mass`` and ``tool_com`` are those of everything the weld carries.
+        tool's inertial forces: the tool, accelerating at a, reads m (g - a), so -m a
+        stays in the compensated reading (and its moment -c x m a, and the rotational
+        inertia's). A slide at 2 cm/s reached in 0.2 s accelerates at 0.1 m/s^2: 0.05 N
+        for a 0.5 kg tool, 0.5 % of a 10 N press; at constant speed it is zero
+        (docs/wrist-sensor.md). ``tool_mass`` and ``tool_com`` are those of everything
+        the weld carries (None: taken from the plant, a perfectly calibrated tool).
 
         ``noise`` is standard normal (a RandomSource of kGaussian, sampled at the
         sensor's period), scaled here, so a zero input is a noise-free sensor. The
@@ -184,8 +220,8 @@ def WrenchSensor_(T):
             torque_noise_std: float = 0.0,
             filter_cutoff_hz: float = 0.0,
             period: float = 0.0,
-            tool_mass: float = 0.0,
-            tool_com: Sequence[float] = (0.0, 0.0, 0.0),
+            tool_mass: float | None = None,
+            tool_com: Sequence[float] | None = None,
             mount: dict | None = None,
             converter=None,
         ) -> None:
@@ -200,8 +236,9 @@ def WrenchSensor_(T):
                 torque_noise_std: std of the white noise on tx, ty, tz, N m (>= 0).
                 filter_cutoff_hz: cut-off of the first-order low-pass, Hz (0 = none).
                 period: readout period, s (0 = continuous).
-                tool_mass: the mass the weld carries, kg (>= 0), for the compensation.
-                tool_com: its centre of mass in S, m.
+                tool_mass: the mass the weld carries, kg (>= 0), for the compensation
+                    (None: the plant's, see :func:`carried_mass_and_com`).
+                tool_com: its centre of mass in S, m (None: the plant's).
                 mount: the plant's data this system uses (scalar conversion only).
                 converter: scalar converter, supplied by TemplateSystem.
 
@@ -213,6 +250,12 @@ def WrenchSensor_(T):
                 if plant is None:
                     raise ValueError("WrenchSensor needs the plant and its weld_joint")
                 mount = _weld_mount(plant, weld_joint)
+            if tool_mass is None or tool_com is None:  # a perfectly calibrated tool
+                if plant is None:
+                    raise ValueError("WrenchSensor needs the plant for the tool's inertia")
+                carried = carried_mass_and_com(plant, weld_joint)
+                tool_mass = carried[0] if tool_mass is None else tool_mass
+                tool_com = carried[1] if tool_com is None else tool_com
             cutoff = _nonnegative("filter_cutoff_hz", filter_cutoff_hz, "Hz (0 = none)")
             h = _nonnegative("period", period, "s (0 = continuous)")
             self._arguments = dict(
@@ -248,6 +291,7 @@ def WrenchSensor_(T):
             )
             self.noise_input = self.DeclareVectorInputPort("noise", 6)
             if h > 0:
+                # One group, x: a context's SetDiscreteState(x) sets the sensor's reading.
                 self._state = self.DeclareDiscreteState(6)
                 self.DeclarePeriodicDiscreteUpdateEvent(
                     period_sec=h, offset_sec=0.0, update=self._sample
@@ -294,6 +338,7 @@ def WrenchSensor_(T):
             return self.true_wrench(context)
 
         def _reading(self, context) -> list:
+            """x + b + sigma n."""
             noise = self.noise_input.Eval(context).tolist()
             return [
                 x + b + s * n
@@ -333,7 +378,8 @@ def WrenchSensor_(T):
 
         def InitializeReading(self, context) -> None:
             """Sets the filter's (or hold's) state to the true wrench now: a sensor that
-            has settled on the initial load (the plant's state must be set first)."""
+            has settled on the initial load (the plant's state must be set first). Any
+            other start: ``SetDiscreteState`` or ``SetContinuousState`` of x."""
             if self._period > 0:
                 context.SetDiscreteState(self._state, self.true_wrench(context))
             elif self._tau > 0:
@@ -423,8 +469,12 @@ def WrenchInControlFrame_(T):
                 mount = _weld_mount(plant, weld_joint)
                 if control_frame != "world" and not plant.HasFrameNamed(control_frame):
                     raise ValueError(f"control_frame: the plant has no frame {control_frame!r}")
-                body_E, R_BE, _ = sensor_frame_in_body(plant, control_frame)
-                frames = dict(S=(mount["body_index"], mount["R_BS"]), E=(body_E, R_BE))
+                frame_E = (
+                    plant.world_frame()
+                    if control_frame == "world"
+                    else plant.GetFrameByName(control_frame)
+                )
+                frames = dict(S=(mount["body_index"], mount["R_BS"]), E=_frame_in_body(frame_E))
             selected = [int(a) for a in axes]
             if (
                 not selected

@@ -43,12 +43,21 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import ExternallyAppliedSpatialForce, MultibodyPlant
 from pydrake.multibody.tree import FixedOffsetFrame, SpatialInertia, WeldJoint
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import ConstantValueSource, RandomSource
+from pydrake.systems.framework import DiagramBuilder, InputPortSelection, OutputPortSelection
+from pydrake.systems.primitives import (
+    ConstantValueSource,
+    ConstantVectorSource,
+    Linearize,
+    RandomSource,
+)
 
 from admittance.diagrams.loop.point import AddSensorChain
 from admittance.diagrams.robots.description import ForcePoint, SensorChain
-from admittance.systems.wrench_sensor import WrenchInControlFrame, WrenchSensor
+from admittance.systems.wrench_sensor import (
+    WrenchInControlFrame,
+    WrenchSensor,
+    carried_mass_and_com,
+)
 
 
 def _panda_folder() -> Path | None:
@@ -86,16 +95,24 @@ BASES = {
 }
 
 
-def _add_panda_with_tool(builder, X_W0):
-    """The fixed-joint Panda welded at X_W0 with the tool on ``ft_weld``, and the frame E."""
+def _add_panda_with_tool(builder, X_W0, *, held=True, remove=None):
+    """The Panda welded at X_W0 with the tool on ``ft_weld``, and the frame E; `held`
+    makes every joint fixed (the arm held still at q = 0); `remove` names a joint removed
+    before the weld is added (its index is then a gap)."""
     text = (PANDA / "urdf" / "panda.urdf").read_text()
-    text = re.sub(r'type="(revolute|prismatic)"', 'type="fixed"', text)
+    if held:
+        text = re.sub(r'type="(revolute|prismatic)"', 'type="fixed"', text)
     text = re.sub(r"<(safety_controller|mimic)[^>]*/>", "", text)
     plant = builder.AddSystem(MultibodyPlant(0.0))  # no SceneGraph: no meshes needed
     parser = Parser(plant)
     parser.package_map().Add("example-robot-data", str(PANDA.parent.parent))
     (model,) = parser.AddModelsFromString(text, "urdf")
     plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("panda_link0"), X_W0)
+    if remove is not None:  # replaced by a weld, as a description may do
+        joint = plant.GetJointByName(remove)
+        parent, child = joint.frame_on_parent(), joint.frame_on_child()
+        plant.RemoveJoint(joint)
+        plant.WeldFrames(parent, child, RigidTransform())
     tool = plant.AddRigidBody(
         "tool", model, SpatialInertia.SolidSphereWithMass(MASS, RADIUS).Shift(-C_B)
     )
@@ -118,17 +135,23 @@ def _apply_surface_wrench(builder, plant, tool):
     builder.Connect(source.get_output_port(), plant.get_applied_spatial_force_input_port())
 
 
+def _add_sensor(builder, plant, **sensor_args):
+    """A WrenchSensor on ``ft_weld`` (the rig's tool by default) reading the plant."""
+    sensor_args.setdefault("tool_mass", MASS)
+    sensor_args.setdefault("tool_com", C_S)
+    sensor = builder.AddSystem(WrenchSensor(plant, "ft_weld", **sensor_args))
+    builder.Connect(plant.get_reaction_forces_output_port(), sensor.reaction_forces_input)
+    builder.Connect(plant.get_body_poses_output_port(), sensor.body_poses_input)
+    return sensor
+
+
 def _rig(base="upright", *, push=False, noise_source=None, **sensor_args):
     """The rig's diagram, its context, the sensor and the control-frame reading."""
     builder = DiagramBuilder()
     plant, tool = _add_panda_with_tool(builder, BASES[base])
     if push:
         _apply_surface_wrench(builder, plant, tool)
-    sensor_args.setdefault("tool_mass", MASS)
-    sensor_args.setdefault("tool_com", C_S)
-    sensor = builder.AddSystem(WrenchSensor(plant, "ft_weld", **sensor_args))
-    builder.Connect(plant.get_reaction_forces_output_port(), sensor.reaction_forces_input)
-    builder.Connect(plant.get_body_poses_output_port(), sensor.body_poses_input)
+    sensor = _add_sensor(builder, plant, **sensor_args)
     if noise_source is not None:
         source = builder.AddSystem(noise_source)
         builder.Connect(source.get_output_port(0), sensor.noise_input)
@@ -173,6 +196,23 @@ def test_still_tool_reads_its_weight_and_compensates_to_zero(base):
     np.testing.assert_allclose(_eval(frame, frame.force_output, context), 0.0, atol=1e-9)
 
 
+def test_weld_after_a_removed_joint():
+    """A description's joint removed and welded again (its index left a gap): the weld's
+    entry in the reaction-force port is its position among the joints; it reads the
+    weight."""
+    builder = DiagramBuilder()
+    plant, _ = _add_panda_with_tool(builder, BASES["upright"], remove="panda_hand_tcp_joint")
+    indices = [int(i) for i in plant.GetJointIndices()]
+    assert indices != list(range(len(indices)))  # the gap is there
+    sensor = _add_sensor(builder, plant)
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    sensor_context = sensor.GetMyMutableContextFromRoot(context)
+    sensor.noise_input.FixValue(sensor_context, np.zeros(6))
+    raw = sensor.wrench_output.Eval(sensor_context)
+    np.testing.assert_allclose(raw, _weight_in_S("upright"), rtol=1e-9, atol=1e-9)
+
+
 @pytest.mark.parametrize("base", sorted(BASES))
 def test_surface_wrench_in_sensor_and_control_frame(base):
     diagram, context, sensor, frame = _rig(base, push=True)
@@ -184,6 +224,29 @@ def test_surface_wrench_in_sensor_and_control_frame(base):
     force = _eval(frame, frame.force_output, context)
     np.testing.assert_allclose(force, PUSH_E, rtol=1e-9, atol=1e-9)
     assert force[2] > 9.99  # pushing the table reads positive along its inward normal
+
+
+def test_inertial_force_is_not_compensated():
+    """The arm let go (no torque, at rest) falls: the tool's centre of mass accelerates at
+    a, the weld carries m (a - g), and the compensated reading is the inertial force
+    -m a in S (Newton's second law for the tool; a from the plant's forward dynamics)."""
+    builder = DiagramBuilder()
+    plant, tool = _add_panda_with_tool(builder, BASES["upright"], held=False)
+    sensor = _add_sensor(builder, plant)
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    plant_context = plant.GetMyMutableContextFromRoot(context)
+    plant.get_actuation_input_port().FixValue(plant_context, np.zeros(plant.num_actuators()))
+    plant.SetPositions(plant_context, [0.0, -0.5, 0.0, -2.0, 0.0, 1.5, 0.7, 0.02, 0.02])
+    sensor_context = sensor.GetMyMutableContextFromRoot(context)
+    sensor.noise_input.FixValue(sensor_context, np.zeros(6))
+    A_WB = plant.EvalBodySpatialAccelerationInWorld(plant_context, tool)
+    X_WB = plant.EvalBodyPoseInWorld(plant_context, tool)
+    a_W = A_WB.translational() + np.cross(A_WB.rotational(), X_WB.rotation().multiply(C_B))
+    R_SW = X_WB.rotation().multiply(X_BS.rotation()).inverse()
+    compensated = sensor.compensated_wrench_output.Eval(sensor_context)
+    assert np.linalg.norm(a_W) > 1.0  # m/s^2: a real fall, not a rounding error
+    np.testing.assert_allclose(compensated[:3], -MASS * R_SW.multiply(a_W), rtol=1e-9, atol=1e-9)
 
 
 def test_bias_adds_exactly():
@@ -250,11 +313,14 @@ def test_period_holds_the_reading_between_samples():
             np.testing.assert_allclose(raw, held, rtol=1e-12, atol=1e-12)
 
 
-def test_initialize_reading_starts_settled():
-    diagram, context, sensor, _ = _rig("tilted", filter_cutoff_hz=10.0)
+@pytest.mark.parametrize("period", [0.0, 0.01])
+def test_initialize_reading_starts_settled(period):
+    diagram, context, sensor, _ = _rig("tilted", filter_cutoff_hz=10.0, period=period)
     sensor.InitializeReading(sensor.GetMyMutableContextFromRoot(context))
     raw = _eval(sensor, sensor.wrench_output, context)
     np.testing.assert_allclose(raw, _weight_in_S("tilted"), rtol=1e-9, atol=1e-12)
+    compensated = _eval(sensor, sensor.compensated_wrench_output, context)
+    np.testing.assert_allclose(compensated, 0.0, atol=1e-9)
 
 
 def test_autodiff_reads_as_float():
@@ -270,6 +336,53 @@ def test_autodiff_reads_as_float():
     np.testing.assert_allclose(values, PUSH_E, rtol=1e-9, atol=1e-9)
 
 
+def test_linearizes_with_the_arm():
+    """Drake's Linearize through the plant's reaction forces (AutoDiffXd), the Panda held
+    by its gravity torques at rest: the filter's block of A is -2 pi f_c I; its coupling
+    to the arm's state x = (q, v) is (1 / tau) dw/dx, against central differences of the
+    float reading (step 1e-6, error O(1e-12) on terms of order 1: 1e-6 is ample). The
+    URDF's joint damping makes w depend on v even at rest."""
+    cutoff = 10.0
+    builder = DiagramBuilder()
+    plant, _ = _add_panda_with_tool(builder, BASES["tilted"], held=False)
+    sensor = _add_sensor(builder, plant, filter_cutoff_hz=cutoff)
+    zero = builder.AddSystem(ConstantVectorSource(np.zeros(6)))
+    builder.Connect(zero.get_output_port(), sensor.noise_input)
+    q = np.array([0.0, -0.5, 0.0, -2.0, 0.0, 1.5, 0.7, 0.02, 0.02])
+    plant_context = plant.CreateDefaultContext()
+    plant.SetPositions(plant_context, q)
+    holding = builder.AddSystem(
+        ConstantVectorSource(-plant.CalcGravityGeneralizedForces(plant_context))
+    )
+    builder.Connect(holding.get_output_port(), plant.get_applied_generalized_force_input_port())
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    plant.SetPositions(plant.GetMyMutableContextFromRoot(context), q)
+    sensor.InitializeReading(sensor.GetMyMutableContextFromRoot(context))
+    A = Linearize(
+        diagram,
+        context,
+        input_port_index=InputPortSelection.kNoInput,
+        output_port_index=OutputPortSelection.kNoOutput,
+        equilibrium_check_tolerance=1e-9,
+    ).A()
+    n, nq = plant.num_multibody_states(), plant.num_positions()
+    np.testing.assert_allclose(A[n:, n:], -2 * math.pi * cutoff * np.eye(6), rtol=1e-12)
+    state = np.concatenate([q, np.zeros(n - nq)])
+
+    def reading(x):
+        plant.SetPositionsAndVelocities(plant.GetMyMutableContextFromRoot(context), x)
+        return np.array(sensor.true_wrench(sensor.GetMyContextFromRoot(context)))
+
+    step = 1e-6
+    columns = [
+        (reading(state + step * e) - reading(state - step * e)) / (2 * step) for e in np.eye(n)
+    ]
+    expected = 2 * math.pi * cutoff * np.array(columns).T
+    assert np.abs(expected).max() > 1.0  # the coupling is there to be checked
+    np.testing.assert_allclose(A[n:, :n], expected, rtol=1e-6, atol=1e-6)
+
+
 def test_add_sensor_chain_wires_the_wrist_sensor():
     """The point's chain of kind "wrench": the normal force in the point's frame, 10 N."""
     builder = DiagramBuilder()
@@ -279,9 +392,7 @@ def test_add_sensor_chain_wires_the_wrist_sensor():
         kind="wrench",
         filter_cutoff=0.0,
         weld_joint="ft_weld",
-        tool_mass=MASS,
-        tool_com=tuple(C_S),
-        contact_offset=tuple(R_SP),
+        contact_offset=tuple(R_SP),  # tool_mass and tool_com: the plant's
     )
     point = ForcePoint(
         name="tool",
@@ -293,10 +404,38 @@ def test_add_sensor_chain_wires_the_wrist_sensor():
     )
     reading = AddSensorChain(builder, point, None, plant=plant)
     assert reading.random_sources == []  # no noise std: a zero source
+    noisy = ForcePoint(
+        name="noisy",
+        frame="ft_sensor",
+        coordinates=point.coordinates,
+        expressed_in="surface",
+        force_axes=(2,),
+        sensor=SensorChain(kind="wrench", weld_joint="ft_weld", noise_std=0.1, period=0.002),
+    )
+    (source,) = AddSensorChain(builder, noisy, None, plant=plant).random_sources
+    assert source.get_output_port(0).size() == 6
+    noisy.name = "quiet"
+    quiet = AddSensorChain(builder, noisy, None, plant=plant, noise=False)  # for analysis
+    assert quiet.random_sources == []
     diagram = builder.Build()
     context = diagram.CreateDefaultContext()
     force = reading.measured_force_output.Eval(reading.control_frame.GetMyContextFromRoot(context))
     np.testing.assert_allclose(force, PUSH_E[[2, 3]], rtol=1e-9, atol=1e-9)
+
+
+def test_carried_mass_and_com_is_the_tool():
+    """The weld carries the sphere alone: 0.5 kg at c_S = X_BS^-1 c_B."""
+    plant, _ = _add_panda_with_tool(DiagramBuilder(), BASES["tilted"])
+    mass, com = carried_mass_and_com(plant, "ft_weld")
+    assert mass == pytest.approx(MASS, rel=1e-12)
+    np.testing.assert_allclose(com, C_S, rtol=0, atol=1e-12)
+    # Without tool_mass and tool_com the sensor takes these: the still tool reads zero.
+    diagram, context, sensor, _ = _rig("tilted", tool_mass=None, tool_com=None)
+    compensated = _eval(sensor, sensor.compensated_wrench_output, context)
+    np.testing.assert_allclose(compensated, 0.0, atol=1e-9)
+    # panda_joint8 (link7 to the flange) carries the flange, the hand and its fingers,
+    # and the tool: more than the tool.
+    assert carried_mass_and_com(plant, "panda_joint8")[0] > MASS + 0.5
 
 
 def test_bad_arguments_name_themselves():

@@ -56,9 +56,10 @@ class SensorChain:
     # The weld joint between the flange (parent) and the tool (child): its frame on the
     # tool is the sensor frame S.
     weld_joint: str = ""
-    # The mass the weld carries, kg, and its centre of mass in S, m (weight compensation).
-    tool_mass: float = 0.0
-    tool_com: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    # The mass the weld carries, kg, and its centre of mass in S, m, for the weight
+    # compensation (None = the plant's own: a perfectly calibrated tool).
+    tool_mass: float | None = None
+    tool_com: tuple[float, float, float] | None = None
     # The tool's contact point in S, m: the moments are taken about it.
     contact_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     # Indices into [fx, fy, fz, tx, ty, tz] in the point's frame (`expressed_in`) that the
