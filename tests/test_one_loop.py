@@ -10,6 +10,7 @@ import pytest
 
 from admittance.diagrams.loop import BuildLoop
 from admittance.diagrams.robots import ForcePoint, finger_points, fingertip_point
+from admittance.diagrams.robots.spatial_arm import example_robot_data_packages, spatial_point
 from admittance.diagrams.run.metrics import (
     CONTACT_FRACTION,
     SETTLE_BAND,
@@ -22,15 +23,22 @@ from admittance.diagrams.run.metrics import (
     settling_time,
     time_mean,
 )
-from admittance.diagrams.scenario import GraspScenario, builtin_scenario_names, load_scenario
+from admittance.diagrams.scenario import (
+    GraspScenario,
+    SpatialScenario,
+    builtin_scenario_names,
+    load_scenario,
+)
 
 # The systems that the shared steps of loop.point add at every point, whatever the robot.
 SHARED_ROLES = ("fingertip_kinematics", "cartesian_pid")
 
 
-def _points(scenario) -> list[ForcePoint]:
+def _points(scenario, loop) -> list[ForcePoint]:
     if isinstance(scenario, GraspScenario):
         return finger_points(scenario)
+    if isinstance(scenario, SpatialScenario):
+        return [spatial_point(scenario, loop.plant, loop.initial_positions)]
     return [fingertip_point(scenario)]
 
 
@@ -39,9 +47,11 @@ def test_every_builtin_scenario_builds_through_the_one_builder(name):
     """Each point of the robot's description gets its kinematics, its PID, its sensor
     chain and its force law from the same steps, named after the point."""
     scenario = load_scenario(name)
+    if isinstance(scenario, SpatialScenario) and example_robot_data_packages() is None:
+        pytest.skip('example-robot-data is not installed: pip install "optimal-admittance[robots]"')
     loop = BuildLoop(scenario)
     names = {loop.diagram.GetSystems()[i].get_name() for i in range(len(loop.diagram.GetSystems()))}
-    points = _points(scenario)
+    points = _points(scenario, loop)
     assert len(points) == (3 if isinstance(scenario, GraspScenario) else 1)
     for point in points:
         for role in SHARED_ROLES:

@@ -67,12 +67,13 @@ def _error(message: str) -> None:
 
 
 def _arm_scenario(args: argparse.Namespace):
-    """The arm scenario of `args`; a grasp scenario is refused with one line."""
+    """The arm scenario of `args`; a grasp or spatial scenario is refused with one line."""
     from admittance.diagrams.scenario.files import load_scenario
     from admittance.diagrams.scenario.planar_gripper import GraspScenario
     from admittance.diagrams.scenario.schema import ScenarioError
 
     scenario = load_scenario(args.scenario, args.overrides)
+    _refuse_spatial(scenario, args)
     if isinstance(scenario, GraspScenario):
         raise ScenarioError(
             f"scenario: '{args.scenario}' is a grasp scenario (kind: grasp); `admittance "
@@ -80,6 +81,18 @@ def _arm_scenario(args: argparse.Namespace):
             "grasp-compare)"
         )
     return scenario
+
+
+def _refuse_spatial(scenario, args: argparse.Namespace) -> None:
+    """One line for a spatial-arm scenario given to a command that does not run one."""
+    from admittance.diagrams.scenario.schema import ScenarioError
+    from admittance.diagrams.scenario.spatial_arm import SpatialScenario
+
+    if isinstance(scenario, SpatialScenario):
+        raise ScenarioError(
+            f"scenario: '{args.scenario}' is a spatial-arm scenario (kind: spatial); "
+            f"`admittance {args.command}` does not run one yet (spatial arms: simulate)"
+        )
 
 
 # --- the subcommands ----------------------------------------------------------------------
@@ -96,11 +109,15 @@ def _cmd_simulate(args: argparse.Namespace, progress) -> int:
     from admittance.diagrams.run.engine import SimulationDivergedError
     from admittance.diagrams.run.simulation import simulate
     from admittance.diagrams.scenario.files import load_scenario
+    from admittance.diagrams.scenario.schema import ScenarioError
+    from admittance.diagrams.scenario.spatial_arm import SpatialScenario
     from admittance.diagrams.views.figures import write_replay
 
     scenario = load_scenario(args.scenario, args.overrides)
     out = Path(args.out) if args.out else Path("results") / scenario.name
     check_output_dir(out, overwrite=args.force)
+    if args.meshcat_html and isinstance(scenario, SpatialScenario):
+        raise ScenarioError("--meshcat-html: the spatial arm has no Meshcat replay yet")
     if args.meshcat_html:
         check_writable(args.meshcat_html, "--meshcat-html")
         check_replay_file(args.meshcat_html, args.force)
@@ -284,6 +301,7 @@ def _cmd_stability(args: argparse.Namespace, progress) -> int:
     from admittance.diagrams.scenario.planar_gripper import GraspScenario
 
     scenario = load_scenario(args.scenario, args.overrides)
+    _refuse_spatial(scenario, args)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_stability"
     check_output_dir(out, overwrite=args.force)
     if isinstance(scenario, GraspScenario):

@@ -17,6 +17,7 @@ from admittance.diagrams.app.formatting import number, seconds
 from admittance.diagrams.app.result_folder import ResultFolder, result_folder
 from admittance.diagrams.run.planar_arm import SimulationResult
 from admittance.diagrams.run.planar_gripper import GraspResult, grasp_verdict_line
+from admittance.diagrams.run.spatial_arm import SpatialResult, spatial_verdict_line
 from admittance.diagrams.scenario.files import scenario_to_yaml
 from admittance.diagrams.views.figures import result_figures
 
@@ -56,6 +57,8 @@ def summary(result: SimulationResult | GraspResult) -> str:
     """A few lines for the terminal."""
     if isinstance(result, GraspResult):
         return _grasp_summary(result)
+    if isinstance(result, SpatialResult):
+        return _spatial_summary(result)
     m = result.metrics
     lines = [
         f"scenario {result.scenario.name}: {number(float(result.time[-1]), ' s')} simulated in "
@@ -80,6 +83,22 @@ def summary(result: SimulationResult | GraspResult) -> str:
             "the force passed Fmax where the arm could not follow the layer's command"
         )
     return "\n".join(lines)
+
+
+def _spatial_summary(result: SpatialResult) -> str:
+    """A few lines for the terminal."""
+    m = result.metrics
+    return "\n".join(
+        [
+            f"scenario {result.scenario.name}: {number(float(result.time[-1]), ' s')} simulated "
+            f"in {seconds(m['wall_time'])} (real-time factor {number(m['real_time_factor'])}), "
+            f"{m['steps']} steps",
+            f"  first contact {number(m['first_contact_time'], ' s')}, peak force "
+            f"{number(m['peak_force'], ' N')}, steady-state force error "
+            f"{number(m['steady_state_force_error'], ' N')}",
+            f"  {spatial_verdict_line(result)}",
+        ]
+    )
 
 
 def _grasp_summary(result: GraspResult) -> str:

@@ -6,3 +6,4 @@ from admittance.diagrams.loop.planar_arm import *  # noqa: F403
 from admittance.diagrams.loop.planar_gripper import *  # noqa: F403
 from admittance.diagrams.loop.point import *  # noqa: F403
 from admittance.diagrams.loop.safety_layer import *  # noqa: F403
+from admittance.diagrams.loop.spatial_arm import *  # noqa: F403

@@ -28,8 +28,7 @@ from pydrake.systems.primitives import (
 from pydrake.trajectories import PiecewisePolynomial
 
 from admittance.diagrams.loop.point import (
-    AddCommandedPosition,
-    AddForceController,
+    AddForceLoop,
     AddLoggers,
     AddPointKinematics,
     AddPointPid,
@@ -171,14 +170,14 @@ def _AddFinger(
         TrajectorySource(_force_reference(scenario, initial_force, index))
     )
     reference.set_name(point.system_name("force_reference"))
-    admittance = AddForceController(builder, point)
-    if admittance is not None:
-        builder.Connect(reference.get_output_port(), admittance.desired_force_input)
-        builder.Connect(reading.measured_force_output, admittance.measured_force_input)
-        commanded = AddCommandedPosition(builder, point, split.get_output_port(0), pid)
-        builder.Connect(admittance.reference_offset_output, commanded.get_input_port(1))
-    else:
-        builder.Connect(split.get_output_port(0), pid.commanded_position_input)
+    admittance = AddForceLoop(
+        builder,
+        point,
+        pid,
+        desired_position_output=split.get_output_port(0),
+        desired_force_output=reference.get_output_port(),
+        measured_force_output=reading.measured_force_output,
+    )
     return FingerLoop(
         name=point.name,
         kinematics=kinematics,

@@ -40,6 +40,7 @@ from admittance.systems.wrench_sensor import WrenchInControlFrame, WrenchSensor
 __all__ = [
     "AddCommandedPosition",
     "AddForceController",
+    "AddForceLoop",
     "AddLoggers",
     "AddPointKinematics",
     "AddPointPid",
@@ -294,6 +295,32 @@ def AddCommandedPosition(
     builder.Connect(desired_position_output, commanded.get_input_port(0))
     builder.Connect(commanded.get_output_port(), pid.commanded_position_input)
     return commanded
+
+
+def AddForceLoop(
+    builder: DiagramBuilder,
+    point: ForcePoint,
+    pid: CartesianPid,
+    *,
+    desired_position_output,
+    desired_force_output,
+    measured_force_output,
+):
+    """The point's force controller between its sensor and its PID: Xc = Xd + Xr into the
+    PID (Xd alone for pid_only).
+
+    Returns:
+        the force controller, or None for pid_only.
+    """
+    controller = AddForceController(builder, point)
+    if controller is None:
+        builder.Connect(desired_position_output, pid.commanded_position_input)
+        return None
+    builder.Connect(desired_force_output, controller.desired_force_input)
+    builder.Connect(measured_force_output, controller.measured_force_input)
+    commanded = AddCommandedPosition(builder, point, desired_position_output, pid)
+    builder.Connect(controller.reference_offset_output, commanded.get_input_port(1))
+    return controller
 
 
 def AddLoggers(builder: DiagramBuilder, ports: dict, period: float) -> dict:

@@ -2,8 +2,9 @@
 
 ``load_scenario`` reads a built-in name or a YAML path, applies ``--set`` overrides, and
 returns a validated scenario of the file's ``kind``: the paper's planar arm against its
-wall (no ``kind``, or ``kind: arm``) or Drake's planar gripper holding a brick
-(``kind: grasp``). Every problem is one ``ScenarioError`` line naming the key.
+wall (no ``kind``, or ``kind: arm``), Drake's planar gripper holding a brick
+(``kind: grasp``) or a real arm's tool on a table (``kind: spatial``). Every problem
+is one ``ScenarioError`` line naming the key.
 """
 
 
@@ -23,6 +24,7 @@ from admittance.diagrams.scenario.schema import (
     ScenarioError,
     load_typed,
 )
+from admittance.diagrams.scenario.spatial_arm import load_spatial_scenario
 from admittance.diagrams.scenario.validation import validate
 
 __all__ = [
@@ -34,8 +36,9 @@ __all__ = [
 # The built-in scenario files (package data beside this package).
 SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
 # A scenario file's top-level `kind`: absent or "arm" for the arm against its wall (the
-# schema below), "grasp" for the planar gripper (diagrams/scenario/planar_gripper.py).
-SCENARIO_KINDS = ("arm", "grasp")
+# schema below), "grasp" for the planar gripper (diagrams/scenario/planar_gripper.py),
+# "spatial" for a real arm's tool on a table (diagrams/scenario/spatial_arm.py).
+SCENARIO_KINDS = ("arm", "grasp", "spatial")
 
 
 # --- loading ----------------------------------------------------------------------------
@@ -162,7 +165,8 @@ def load_scenario(
         overrides: "key=value" strings (as given to --set) or a {key: value} mapping.
 
     A file whose top-level ``kind`` is ``grasp`` is a grasp scenario: it is loaded with
-    its own schema (diagrams/scenario/planar_gripper.py) and a GraspScenario is returned.
+    its own schema (diagrams/scenario/planar_gripper.py) and a GraspScenario is returned;
+    ``spatial`` gives a SpatialScenario (diagrams/scenario/spatial_arm.py).
 
     Raises:
         ScenarioError: one line naming the first bad key and what is allowed.
@@ -173,6 +177,8 @@ def load_scenario(
         raise ScenarioError(f"kind: must be one of {', '.join(SCENARIO_KINDS)}, got {kind!r}")
     if kind == "grasp":
         return load_grasp_scenario(data, overrides)
+    if kind == "spatial":
+        return load_spatial_scenario(data, overrides)
     return validate(load_typed(data, Scenario, overrides))
 
 

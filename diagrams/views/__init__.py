@@ -6,3 +6,4 @@ from admittance.diagrams.views.gripper_replay import *  # noqa: F403
 from admittance.diagrams.views.picture import *  # noqa: F403
 from admittance.diagrams.views.plots import *  # noqa: F403
 from admittance.diagrams.views.replay import *  # noqa: F403
+from admittance.diagrams.views.spatial_arm import *  # noqa: F403

@@ -13,12 +13,15 @@ from collections.abc import Callable
 from pathlib import Path
 
 from admittance.diagrams.run.planar_gripper import GraspResult
+from admittance.diagrams.run.spatial_arm import SpatialResult
+from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.diagrams.views.gripper_plots import plot_grasp
 from admittance.diagrams.views.gripper_replay import write_grasp_meshcat_replay
 from admittance.diagrams.views.plots import plot_errors, plot_force, plot_reference
 from admittance.diagrams.views.replay import write_meshcat_replay
+from admittance.diagrams.views.spatial_arm import plot_spatial
 
-__all__ = ["ARM_FIGURES", "GRASP_FIGURES", "result_figures", "write_replay"]
+__all__ = ["ARM_FIGURES", "GRASP_FIGURES", "SPATIAL_FIGURES", "result_figures", "write_replay"]
 
 # The paper's figures of an arm's run, by file name.
 ARM_FIGURES = {
@@ -28,10 +31,14 @@ ARM_FIGURES = {
 }
 # The grasp's figure: the three normal forces against their Fr, and the brick.
 GRASP_FIGURES = {"grasp_forces.png": plot_grasp}
+# The spatial arm's figure: the force against Fr, the path and orientation errors.
+SPATIAL_FIGURES = {"spatial_force_path.png": plot_spatial}
 
 
 def result_figures(result) -> dict[str, Callable]:
     """File name -> a function of the result that draws it and returns its axes."""
+    if isinstance(result, SpatialResult):
+        return SPATIAL_FIGURES
     return GRASP_FIGURES if isinstance(result, GraspResult) else ARM_FIGURES
 
 
@@ -39,4 +46,6 @@ def write_replay(result, path: str | os.PathLike) -> Path:
     """A self-contained Meshcat HTML replay of `result` (any robot's); returns its path."""
     if isinstance(result, GraspResult):
         return write_grasp_meshcat_replay(result, path)
+    if isinstance(result, SpatialResult):
+        raise ScenarioError("--meshcat-html: the spatial arm has no Meshcat replay yet")
     return write_meshcat_replay(result, path)

@@ -1,0 +1,319 @@
+"""The spatial arm's loop: a real arm's tool pressing and sliding on a table, as a Diagram.
+
+    Xd --(+)--> Xc --> CartesianPid (6-D, + g(q), + posture) --tau--> plant --state--+
+          ^ Xr            ^ X, dX/dt, J (tool tip in E)                            |
+          |               +-------------- kinematics <---------------------------+
+          +---- force law <-- Fm -- sensor <-- F (along E's z) <-- contact results
+                    ^ Fr(t)
+
+One force-controlled point (robots.spatial_arm.spatial_point): the tool tip, X = (x, y, z,
+rx, ry, rz) in the control frame E at the planned surface point, the force along z (into
+the table), wired by the steps every robot shares (loop.point). What is the arm's own here:
+the plan (approach, force ramp, press, slide and back), the true force along E's z read
+from the contact engine, and the initial posture from inverse kinematics.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.common import RandomGenerator
+from pydrake.common.value import Value
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import ContactResults, MultibodyPlant
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import (
+    Demultiplexer,
+    RandomSource,
+    TrajectorySource,
+    VectorLogSink,
+)
+from pydrake.trajectories import PiecewisePolynomial
+
+from admittance.diagrams.loop.point import (
+    AddForceLoop,
+    AddLoggers,
+    AddPointKinematics,
+    AddPointPid,
+    AddSensorChain,
+)
+from admittance.diagrams.robots.spatial_arm import (
+    NORMAL_AXIS,
+    TABLE_BODY,
+    TOOL_BODY,
+    TOOL_TIP_FRAME,
+    AddSpatialArm,
+    SolveSpatialInverseKinematics,
+    SpatialGeometry,
+    spatial_point,
+)
+from admittance.diagrams.scenario.schema import ScenarioError
+from admittance.diagrams.scenario.spatial_arm import SPATIAL_COORDINATES, SpatialScenario
+
+__all__ = [
+    "BuildSpatialLoop",
+    "SetSpatialInitialConditions",
+    "SpatialLoop",
+    "TableForce",
+    "spatial_force_reference",
+    "spatial_plan",
+]
+
+SIZE = len(SPATIAL_COORDINATES)
+
+
+class TableForce(LeafSystem):
+    """The force of the tool on the table along a unit direction, from the contact results.
+
+        F = - sum_c f_Tc_W . u_W        (N, > 0 while the tool presses along u)
+
+    where f_Tc_W is the force the contact engine applies to the tool at each of its point
+    contacts with the table, and u_W the direction (the control frame's z, the planned
+    inward normal): the ideal sensor's reading, friction included.
+
+    .. pydrake_system::
+
+        name: TableForce
+        input_ports:
+        - contact_results
+        output_ports:
+        - contact_force
+    """
+
+    def __init__(self, plant: MultibodyPlant, direction_W) -> None:
+        super().__init__()
+        self._tool = plant.GetBodyByName(TOOL_BODY).index()
+        self._table = plant.GetBodyByName(TABLE_BODY).index()
+        self._direction = np.asarray(direction_W, dtype=float)
+        self.contact_results_input = self.DeclareAbstractInputPort(
+            "contact_results", Value[ContactResults]()
+        )
+        self.contact_force_output = self.DeclareVectorOutputPort(
+            "contact_force",
+            1,
+            self._CalcForce,
+            prerequisites_of_calc={self.contact_results_input.ticket()},
+        )
+
+    def _CalcForce(self, context, output) -> None:
+        results = self.contact_results_input.Eval(context)
+        force = 0.0
+        for index in range(results.num_point_pair_contacts()):
+            info = results.point_pair_contact_info(index)
+            bodies = (info.bodyA_index(), info.bodyB_index())
+            if bodies == (self._table, self._tool):
+                force -= float(info.contact_force() @ self._direction)
+            elif bodies == (self._tool, self._table):
+                force += float(info.contact_force() @ self._direction)
+        output.SetAtIndex(0, force)
+
+
+@dataclass
+class SpatialLoop:
+    """A built spatial-arm loop and handles to its parts."""
+
+    scenario: SpatialScenario
+    diagram: Diagram
+    plant: MultibodyPlant
+    scene_graph: object
+    geometry: SpatialGeometry
+    kinematics: object
+    pid: object
+    # The force law (None for pid_only).
+    admittance: object
+    plan: TrajectorySource
+    force_reference: TrajectorySource
+    table_force: TableForce
+    # The wrist force/torque sensor (None for the ideal sensor).
+    sensor: object
+    measured_force_output: object
+    # q at t = 0 (the inverse kinematics of the plan's start), rad.
+    initial_positions: np.ndarray
+    random_sources: list[RandomSource] = field(default_factory=list)
+    loggers: dict[str, VectorLogSink] = field(default_factory=dict)
+
+
+def _hermite_row(breaks, positions, velocities) -> PiecewisePolynomial:
+    samples = np.array([positions], dtype=float)
+    return PiecewisePolynomial.CubicHermite(breaks, samples, np.array([velocities], dtype=float))
+
+
+def _slide_row(scenario: SpatialScenario) -> PiecewisePolynomial | None:
+    """x of Xd: out by slide_distance at slide_speed and back, cubic blends at each end."""
+    t = scenario.trajectory
+    if t.slide_distance == 0:
+        return None
+    d, v, b, start = t.slide_distance, t.slide_speed, t.blend_time, scenario.slide_start
+    leg = d / v + b
+    breaks = [start, start + b, start + d / v, start + leg]
+    out = ([0.0, 0.5 * v * b, d - 0.5 * v * b, d], [0.0, v, v, 0.0])
+    back = ([d, d - 0.5 * v * b, 0.5 * v * b, 0.0], [0.0, -v, -v, 0.0])
+    return _hermite_row(
+        breaks + [time + leg for time in breaks[1:]],
+        out[0] + back[0][1:],
+        out[1] + back[1][1:],
+    )
+
+
+def spatial_plan(scenario: SpatialScenario) -> PiecewisePolynomial:
+    """Xd(t) of the tool tip in the control frame: (x, y, z, rx, ry, rz).
+
+    z goes from approach_height above the planned surface down to Fr / surface.stiffness
+    into it (the paper's eq. 6 on the planned table, where position control alone would
+    press with Fr) over approach_time (a cubic, at rest at both ends); x slides out and back
+    after the press; the orientation stays the planned one (the tool along E's z: a zero
+    rotation vector).
+    """
+    t = scenario.trajectory
+    press = scenario.force_reference / scenario.surface.stiffness
+    rows = {
+        2: _hermite_row([0.0, t.approach_time], [-t.approach_height, press], [0.0, 0.0]),
+    }
+    slide = _slide_row(scenario)
+    if slide is not None:
+        rows[0] = slide
+    end = scenario.duration
+    breaks = sorted({0.0, end, *(b for row in rows.values() for b in row.get_segment_times())})
+    breaks = [b for b in breaks if b <= end]
+    positions = np.zeros((SIZE, len(breaks)))
+    velocities = np.zeros((SIZE, len(breaks)))
+    for axis, row in rows.items():
+        first, last = row.start_time(), row.end_time()
+        for column, time in enumerate(breaks):
+            clamped = min(max(time, first), last)
+            positions[axis, column] = row.value(clamped)[0, 0]
+            inside = first <= time <= last
+            velocities[axis, column] = row.EvalDerivative(clamped, 1)[0, 0] if inside else 0.0
+    return PiecewisePolynomial.CubicHermite(breaks, positions, velocities)
+
+
+def spatial_force_reference(scenario: SpatialScenario) -> PiecewisePolynomial:
+    """Fr(t): 0 during the approach, then a ramp to force_reference over force_ramp_time."""
+    start = scenario.press_start
+    breaks = [0.0, start, start + scenario.trajectory.force_ramp_time]
+    return PiecewisePolynomial.FirstOrderHold(breaks, [[0.0, 0.0, scenario.force_reference]])
+
+
+def BuildSpatialLoop(scenario: SpatialScenario) -> SpatialLoop:
+    """Wires the arm, its tool, the table and the tool tip's force loop for `scenario`.
+
+    Raises:
+        ScenarioError: the model cannot be loaded or a frame is missing (one line).
+    """
+    builder = DiagramBuilder()
+    plant, scene_graph, geometry = AddSpatialArm(builder, scenario)
+    initial_positions = _initial_positions(scenario, plant, geometry)
+    point = spatial_point(scenario, plant, initial_positions)
+
+    table_force = builder.AddSystem(
+        TableForce(plant, geometry.X_WE.rotation().matrix()[:, NORMAL_AXIS])
+    )
+    table_force.set_name("table_force")
+    builder.Connect(plant.get_contact_results_output_port(), table_force.contact_results_input)
+
+    plan = builder.AddSystem(TrajectorySource(spatial_plan(scenario), 1))
+    plan.set_name("plan")
+    split = builder.AddSystem(Demultiplexer([SIZE, SIZE]))
+    split.set_name("plan_split")
+    builder.Connect(plan.get_output_port(), split.get_input_port())
+    reading = AddSensorChain(builder, point, table_force.contact_force_output, plant=plant)
+    kinematics = AddPointKinematics(builder, plant, point)
+    pid = AddPointPid(builder, plant, point, kinematics, split.get_output_port(1))
+    builder.Connect(pid.actuation_output, plant.get_actuation_input_port())
+    reference = builder.AddSystem(TrajectorySource(spatial_force_reference(scenario)))
+    reference.set_name("force_reference")
+    admittance = AddForceLoop(
+        builder,
+        point,
+        pid,
+        desired_position_output=split.get_output_port(0),
+        desired_force_output=reference.get_output_port(),
+        measured_force_output=reading.measured_force_output,
+    )
+
+    ports = {
+        "state": plant.get_state_output_port(),
+        "contact_force": table_force.contact_force_output,
+        "measured_force": reading.measured_force_output,
+        "force_reference": reference.get_output_port(),
+        "plan": plan.get_output_port(),
+        "kinematics": kinematics.kinematics_output,
+        "actuation": pid.actuation_output,
+    }
+    if admittance is not None:
+        ports["reference_offset"] = admittance.reference_offset_output
+    loggers = AddLoggers(builder, ports, scenario.logging.period or scenario.time_step)
+    diagram = builder.Build()
+    diagram.set_name("spatial_loop")
+    return SpatialLoop(
+        scenario=scenario,
+        diagram=diagram,
+        plant=plant,
+        scene_graph=scene_graph,
+        geometry=geometry,
+        kinematics=kinematics,
+        pid=pid,
+        admittance=admittance,
+        plan=plan,
+        force_reference=reference,
+        table_force=table_force,
+        sensor=reading.sensor,
+        measured_force_output=reading.measured_force_output,
+        initial_positions=initial_positions,
+        random_sources=reading.random_sources,
+        loggers=loggers,
+    )
+
+
+def _initial_positions(
+    scenario: SpatialScenario, plant: MultibodyPlant, geometry: SpatialGeometry
+) -> np.ndarray:
+    """q at t = 0: arm.initial_joints, or the inverse kinematics of Xd(0) from joint_guess
+    (the tool tip approach_height above the planned point, along E's z)."""
+    arm = scenario.arm
+    actuated = [plant.GetJointByName(name) for name in geometry.actuated_joints]
+    q = np.zeros(plant.num_positions())
+    if arm.initial_joints:
+        if len(arm.initial_joints) != len(actuated):
+            raise ScenarioError(
+                f"arm.initial_joints: must be {len(actuated)} angles (the actuated joints "
+                f"{', '.join(geometry.actuated_joints)}), got {arm.initial_joints!r}"
+            )
+        for joint, angle in zip(actuated, arm.initial_joints, strict=True):
+            q[joint.position_start()] = angle
+        return q
+    guess = np.zeros(plant.num_positions())
+    for joint, angle in zip(actuated, arm.joint_guess, strict=False):
+        guess[joint.position_start()] = angle
+    start = geometry.X_WE @ RigidTransform([0.0, 0.0, -scenario.trajectory.approach_height])
+    try:
+        return SolveSpatialInverseKinematics(plant, TOOL_TIP_FRAME, start, guess)
+    except ValueError as error:
+        raise ScenarioError(
+            f"arm.joint_guess, surface.position, surface.height: the tool cannot reach the "
+            f"plan's start from this guess ({error})"
+        ) from None
+
+
+def SetSpatialInitialConditions(loop: SpatialLoop, context: Context) -> None:
+    """The arm at rest at the plan's start, the noise sources seeded.
+
+    With gravity compensation the PID holds the arm at zero error with a zero integral,
+    and the force law starts at E(0) = Fr(0) - F(0) = 0 (Xr(0) = 0). A wrist sensor's
+    held (or filtered) reading starts at what it reads at rest in the air: the tool's
+    weight, which its compensation removes.
+    """
+    scenario, plant = loop.scenario, loop.plant
+    loop.diagram.SetRandomContext(context, RandomGenerator(int(scenario.seed)))
+    plant_context = plant.GetMyMutableContextFromRoot(context)
+    plant.SetPositions(plant_context, loop.initial_positions)
+    plant.SetVelocities(plant_context, np.zeros(plant.num_velocities()))
+    sensor = loop.sensor
+    if sensor is not None:
+        sensor_context = sensor.GetMyMutableContextFromRoot(context)
+        weight = sensor.weight_wrench(sensor_context)
+        if sensor.period > 0:
+            sensor_context.SetDiscreteState(weight)
+        elif sensor.filter_time_constant > 0:
+            sensor_context.SetContinuousState(weight)

@@ -1,0 +1,211 @@
+"""Simulating a spatial-arm scenario: the force along the planned normal, the tool's path
+and orientation over the slide, and the metrics of a polishing task.
+
+The SLIDE WINDOW runs from the end of the press (approach, force ramp and press_time: the
+press has settled) to the slide's return, or to the end of the run without a slide; over
+it:
+
+* ``normal_force_rms_error``, ``normal_force_max_error`` (N): the true force of the tool on
+  the table along the planned normal (the control frame's z: the contact engine's, friction
+  included) against Fr;
+* ``contact_losses``: how often that force drops below CONTACT_FRACTION Fr;
+* ``path_error_max`` (m): the tool tip's distance from Xd in the planned table's plane (x
+  and y of the control frame, the axes under position control);
+* ``orientation_error_max`` (degrees): the angle between the tool's orientation and the
+  plan's, |log(R_d R^T)| (the plan holds the tool along the planned normal).
+
+The metrics every robot shares (``peak_force``, ``steady_state_force_error`` over the last
+second, ``rms_force_error`` from the end of the force ramp, ``first_contact_time``,
+``settling_time`` from the end of the ramp) come from run.metrics.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.systems.analysis import SimulatorConfig
+
+from admittance.diagrams.loop.spatial_arm import (
+    BuildSpatialLoop,
+    SetSpatialInitialConditions,
+    SpatialLoop,
+)
+from admittance.diagrams.run.engine import RunResult, finish_run, simulate_loop
+from admittance.diagrams.run.metrics import (
+    contact_loss_indices,
+    final_window,
+    first_contact_time,
+    in_contact,
+    settled_from,
+    time_mean,
+    until_mask,
+)
+from admittance.diagrams.scenario.spatial_arm import SPATIAL_COORDINATES, SpatialScenario
+from admittance.systems.spatial_kinematics import orientation_error
+
+__all__ = ["SpatialResult", "compute_spatial_metrics", "run_spatial", "spatial_verdict_line"]
+
+SIZE = len(SPATIAL_COORDINATES)
+
+
+@dataclass
+class SpatialResult(RunResult):
+    """Time series of one spatial-arm run (SI units) and its metrics."""
+
+    scenario: SpatialScenario
+    time: np.ndarray
+    force: np.ndarray  # (N,): the true force along the planned normal
+    force_measured: np.ndarray  # (N,): what the force law read
+    force_reference: np.ndarray  # (N,): Fr(t)
+    plan: np.ndarray  # (N, 6): Xd in the control frame
+    pose: np.ndarray  # (N, 6): X of the tool tip in the control frame
+    reference_offset: np.ndarray  # (N,): Xr along z (zeros for pid_only)
+    joint_positions: np.ndarray  # (N, nq)
+    wall_time: float
+    steps: int
+    metrics: dict = field(default_factory=dict)
+
+    @property
+    def path_error(self) -> np.ndarray:
+        """|X - Xd| in the planned table's plane (x, y of the control frame), m."""
+        error = self.pose[:, :2] - self.plan[:, :2]
+        return np.hypot(error[:, 0], error[:, 1])
+
+    @property
+    def orientation_error(self) -> np.ndarray:
+        """The angle between the tool's orientation and the plan's, |log(R_d R^T)|, degrees."""
+        errors = [
+            orientation_error(desired, actual)
+            for desired, actual in zip(
+                self.plan[:, 3:6].tolist(), self.pose[:, 3:6].tolist(), strict=True
+            )
+        ]
+        return np.degrees(np.linalg.norm(np.array(errors).reshape(-1, 3), axis=1))
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The timeseries.csv columns, in order."""
+        columns = {
+            "time": self.time,
+            "force": self.force,
+            "force_measured": self.force_measured,
+            "force_reference": self.force_reference,
+        }
+        for index, name in enumerate(SPATIAL_COORDINATES):
+            columns[name] = self.pose[:, index]
+        for index, name in enumerate(SPATIAL_COORDINATES[:3]):
+            columns[f"{name}d"] = self.plan[:, index]
+        columns["zr"] = self.reference_offset
+        columns["path_error"] = self.path_error
+        columns["orientation_error"] = self.orientation_error
+        return columns
+
+
+def compute_spatial_metrics(result: SpatialResult) -> dict:
+    """metrics.json of a spatial-arm run (see the module's docstring)."""
+    scenario = result.scenario
+    time, force = result.time, result.force
+    reference = scenario.force_reference
+    duration = float(time[-1])
+    ramp_end = scenario.press_start + scenario.trajectory.force_ramp_time
+    start, end = scenario.slide_start, min(scenario.slide_end, duration)
+    if end <= start:
+        end = duration
+    window = until_mask(time, start, end)
+    error = force - reference
+    contact = in_contact(force, reference)
+    after_ramp = time >= ramp_end
+    last = final_window(time)
+    settled = settled_from(time, force, reference, ramp_end)
+    return {
+        "kind": "spatial",
+        "controller": scenario.controller.kind,
+        "force_reference": reference,
+        "slide_window": [start, end],
+        "normal_force_rms_error": math.sqrt(time_mean(time[window], error[window] ** 2)),
+        "normal_force_max_error": float(np.max(np.abs(error[window]))),
+        "contact_losses": int(contact_loss_indices(contact[window]).size),
+        "in_contact_over_slide": bool(np.all(contact[window])),
+        "path_error_max": float(np.max(result.path_error[window])),
+        "orientation_error_max": float(np.max(result.orientation_error[window])),
+        "peak_force": float(np.max(force)),
+        "min_force_over_slide": float(np.min(force[window])),
+        "steady_state_force_error": time_mean(time[last], np.abs(error[last])),
+        "rms_force_error": math.sqrt(time_mean(time[after_ramp], error[after_ramp] ** 2)),
+        "first_contact_time": first_contact_time(time, contact),
+        "settling_time": None if settled is None else settled - ramp_end,
+        "max_reference_offset": float(np.max(np.abs(result.reference_offset))),
+        "wall_time": result.wall_time,
+        "real_time_factor": duration / result.wall_time if result.wall_time > 0 else None,
+        "steps": result.steps,
+        "samples": int(time.size),
+    }
+
+
+def run_spatial(
+    scenario: SpatialScenario,
+    *,
+    loop: SpatialLoop | None = None,
+    progress: Callable[[float], None] | None = None,
+) -> SpatialResult:
+    """Builds (unless given), initializes and simulates a spatial-arm scenario.
+
+    Raises:
+        ScenarioError: the model cannot be loaded, or the arm cannot reach the plan's start.
+        SimulationDivergedError: the run blew up (the exception carries the partial result).
+    """
+    loop = loop or BuildSpatialLoop(scenario)
+    run = simulate_loop(
+        loop.diagram,
+        loop.plant,
+        # The plant and the controllers are discrete; only a classical admittance's state
+        # is continuous, integrated between the steps.
+        SimulatorConfig(),
+        scenario.duration,
+        initialize=lambda context: SetSpatialInitialConditions(loop, context),
+        progress=progress,
+        solver="simulation",
+    )
+    steps = int(round(run.context.get_time() / scenario.time_step))
+    return finish_run(_collect(loop, run.context, run.wall_time, steps), run.divergence)
+
+
+def _collect(loop: SpatialLoop, context, wall_time: float, steps: int) -> SpatialResult:
+    def logged(name: str) -> np.ndarray:
+        return loop.loggers[name].FindLog(context).data().T
+
+    sample_times = loop.loggers["state"].FindLog(context).sample_times()
+    count = sample_times.size
+    states = logged("state")
+    if "reference_offset" in loop.loggers:
+        offset = logged("reference_offset")[:, 2]
+    else:
+        offset = np.zeros(count)
+    result = SpatialResult(
+        scenario=loop.scenario,
+        time=sample_times,
+        force=logged("contact_force")[:, 0],
+        force_measured=logged("measured_force")[:, 0],
+        force_reference=logged("force_reference")[:, 0],
+        plan=logged("plan")[:, :SIZE],
+        pose=logged("kinematics")[:, :SIZE],
+        reference_offset=offset,
+        joint_positions=states[:, : loop.plant.num_positions()],
+        wall_time=wall_time,
+        steps=steps,
+    )
+    result.metrics = compute_spatial_metrics(result)
+    return result
+
+
+def spatial_verdict_line(result: SpatialResult) -> str:
+    """One line: the force error, contact, path and orientation over the slide."""
+    m = result.metrics
+    return (
+        f"over the slide: normal force rms error {m['normal_force_rms_error']:.3g} N, max "
+        f"{m['normal_force_max_error']:.3g} N (Fr = {m['force_reference']:g} N), contact "
+        f"losses {m['contact_losses']}, path error max {1e3 * m['path_error_max']:.3g} mm, "
+        f"orientation error max {m['orientation_error_max']:.3g} deg"
+    )
