@@ -315,3 +315,72 @@ def test_the_press_settles_within_5_percent_in_one_process():
     assert metrics["command_loss_time"] is None
     assert metrics["settling_time"] is not None and metrics["settling_time"] < 3.5
     assert abs(metrics["steady_state_force"] - config.force_reference) < 0.05 * 10
+
+
+class MutedLcm:
+    """The controller's view of a memq instance whose outgoing messages can be cut (the
+    controller process gone, as by SIGKILL) or that sends a parameter change at a time."""
+
+    def __init__(self, lcm) -> None:
+        self.lcm = lcm
+        self.muted = False
+
+    def Subscribe(self, channel, handler):  # noqa: N802 (DrakeLcm's interface)
+        return self.lcm.Subscribe(channel, handler)
+
+    def Publish(self, channel, data):  # noqa: N802
+        if not self.muted:
+            self.lcm.Publish(channel, data)
+
+    def HandleSubscriptions(self, timeout):  # noqa: N802
+        return self.lcm.HandleSubscriptions(timeout)
+
+
+def _press_with(overrides, at_time, action):
+    """The press in one process; `action(controller, muted_lcm)` runs once at the first
+    status at or after `at_time` s."""
+    lcm = DrakeLcm("memq://")
+    muted = MutedLcm(lcm)
+    config = load_hardware_config("panda_surface_press", ["command_wait=0", *overrides])
+    controller = AdmittanceController(config, muted)
+    done = []
+
+    def watch(data):
+        if not done and lcmt_panda_status.decode(data).utime >= at_time * 1e6:
+            done.append(True)
+            action(controller, muted, lcm)
+
+    lcm.Subscribe(CHANNELS.status, watch)
+    run = run_station(config, lcm)
+    return config, controller, run
+
+
+@pytest.mark.slow
+def test_commands_lost_mid_press_the_station_holds_and_the_force_stays_put():
+    """The controller falls silent at 2 s (in contact since 0.7 s, 9.7 N): the station holds
+    from its timeout (20 ms after the last command) and the force stays under 2 Fr; with
+    the latched torques as the brake's load it stays within 0.5 N of its value."""
+
+    def silence(controller, muted, lcm):
+        muted.muted = True
+
+    config, _, run = _press_with(["duration=2.6", "realtime_rate=0"], 2.0, silence)
+    metrics = station_metrics(run, config)
+    loss = metrics["command_loss_time"]
+    assert loss == pytest.approx(2.0 + 0.001 + config.command_timeout, abs=2.5e-3)
+    assert metrics["peak_force_after_command_loss"] < 2 * config.force_reference
+    at_loss = run.force[np.searchsorted(run.times, loss)]
+    after = run.force[run.times >= loss]
+    assert np.max(np.abs(after - at_loss)) < 0.5
+
+
+@pytest.mark.slow
+def test_fr_from_10_to_5_n_while_running_follows_without_overshoot_beyond_10_percent():
+    def lower(controller, muted, lcm):
+        lcm.Publish(CHANNELS.parameters, encode_parameters(force_reference=5.0))
+
+    config, controller, run = _press_with(["duration=5", "realtime_rate=0"], 2.5, lower)
+    assert any("force_reference=5" in e.what for e in controller.events)
+    after = run.force[run.times >= 2.5]
+    assert np.min(after) > 5.0 - 0.1 * 5.0  # no overshoot below 4.5 N
+    assert after[-1] == pytest.approx(5.0, abs=0.25)

@@ -111,7 +111,12 @@ def control_command(args, progress) -> int:
     failure = None
     with stop_on_signals() as stop:
         try:
-            outcome = controller.run(stop)
+            outcome = controller.run(
+                stop,
+                lambda t, force, offset: progress(
+                    f"t = {t:.1f} s: force {force:.2f} N, offset {offset * 1e3:.2f} mm"
+                ),
+            )
         except StationGoneError as error:
             failure, outcome = str(error), "station gone"
     trace = controller.trace

@@ -256,16 +256,21 @@ class AdmittanceController:
         self._lcm.HandleSubscriptions(max(0, int(round(timeout * 1e3))))
         self.check_watchdogs()
 
-    def run(self, stop: Callable[[], bool] = lambda: False) -> str:
-        """Runs until the status clock reaches ``duration`` ("done") or `stop()` ("stopped").
+    def run(self, stop: Callable[[], bool] = lambda: False, report=None) -> str:
+        """Runs until the status clock reaches ``duration`` ("done") or `stop()` ("stopped");
+        `report(time, force, offset)` is called once per second of the status clock.
 
         Raises:
             StationGoneError: as check_watchdogs.
         """
+        next_report = 1.0
         while not self.finished:
             if stop():
                 self.safe_command("stop requested")
                 return "stopped"
             self.poll(self.period)
+            if report is not None and self.time is not None and self.time >= next_report:
+                report(self.time, self.trace.force[-1], self.law.offset)
+                next_report += 1.0
         self.safe_command("duration reached")
         return "done"

@@ -8,9 +8,10 @@ commanded joint positions with the box's own joint controller. When commands sto
 robot's controller stops the arm (Franka's "communication constraints violation" reflex,
 which then closes the brakes). The station stands in for that with a hold: from the
 moment the newest command is older than ``command_timeout``, its joint PD holds the joint
-positions latched at that moment, gravity compensated, until a fresh command arrives. A
-held arm neither pushes harder nor falls: the force it leaves on a surface is the one it
-had at the loss, relaxed by the PD's compliance.
+positions latched at that moment, gravity compensated, until a fresh command arrives. The
+hold keeps the torques it latched as a feed-forward, as a brake keeps the joints' loads: a
+held arm neither pushes harder nor springs back, and the force it leaves on a surface is
+the one it had at the loss.
 """
 
 from __future__ import annotations
@@ -34,8 +35,11 @@ class CommandWatchdog(LeafSystem):
         torque mode:    u = tau_commanded + g(q)
         position mode:  u = Kp (q_commanded - q) - Kd v + g(q)
 
-    and otherwise the arm is held, u = Kp (q_hold - q) - Kd v + g(q), with q_hold latched
-    when the hold began. The arm is held from the start until the first command arrives.
+    and otherwise the arm is held, u = tau_hold + Kp (q_hold - q) - Kd v + g(q), with
+    q_hold and tau_hold (the commanded torque on top of gravity) latched when the hold
+    began: a brake, which locks the joints where they are with the torques that balanced
+    them, so the switch moves nothing. The arm is held from the start until the first
+    command arrives (tau_hold = 0 there).
     Each change between commanded and held is appended to ``events`` (time, what).
 
     .. pydrake_system::
@@ -57,8 +61,8 @@ class CommandWatchdog(LeafSystem):
         mode: str,
         period: float,
         command_timeout: float,
-        joint_stiffness: float,
-        joint_damping: float,
+        joint_stiffness: np.ndarray,
+        joint_damping: np.ndarray,
         effort_limits: np.ndarray,
         initial_position: np.ndarray,
     ) -> None:
@@ -67,8 +71,8 @@ class CommandWatchdog(LeafSystem):
             raise ValueError(f"mode must be torque or position, got {mode!r}")
         self._torque_mode = mode == "torque"
         self._timeout = float(command_timeout)
-        self._kp = float(joint_stiffness)
-        self._kd = float(joint_damping)
+        self._kp = np.asarray(joint_stiffness, dtype=float)
+        self._kd = np.asarray(joint_damping, dtype=float)
         self._limits = np.asarray(effort_limits, dtype=float)
         self.events: list[tuple[float, str]] = []
         self._message = self.DeclareAbstractInputPort(
@@ -77,8 +81,10 @@ class CommandWatchdog(LeafSystem):
         self._commanded = self.DeclareVectorInputPort("commanded", NUM_JOINTS)
         self._state = self.DeclareVectorInputPort("state", 2 * NUM_JOINTS)
         self._gravity = self.DeclareVectorInputPort("gravity_compensation", NUM_JOINTS)
-        # [last utime seen, time it was first seen, hold (0/1), q_hold (7)]
-        initial = np.concatenate([[0.0, 0.0, 1.0], np.asarray(initial_position, dtype=float)])
+        # [last utime seen, time it was first seen, hold (0/1), q_hold (7), tau_hold (7)]
+        initial = np.concatenate(
+            [[0.0, 0.0, 1.0], np.asarray(initial_position, dtype=float), np.zeros(NUM_JOINTS)]
+        )
         self._memory = self.DeclareDiscreteState(initial)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         self._actuation = self.DeclareVectorOutputPort(
@@ -105,7 +111,8 @@ class CommandWatchdog(LeafSystem):
         new[0], new[1] = last_utime, fresh_time
         if stale and not hold:
             new[2] = 1.0
-            new[3:] = self._state.Eval(context)[:NUM_JOINTS]
+            new[3 : 3 + NUM_JOINTS] = self._state.Eval(context)[:NUM_JOINTS]
+            new[3 + NUM_JOINTS :] = self._commanded_effort(context)
             age = (
                 "no command yet" if utime == 0 else f"newest command {time - fresh_time:.4f} s old"
             )
@@ -115,17 +122,24 @@ class CommandWatchdog(LeafSystem):
             self.events.append((time, "commanded: fresh command"))
         discrete_state.set_value(self._memory, new)
 
-    def _calc_actuation(self, context, output: BasicVector) -> None:
-        memory = context.get_discrete_state(self._memory).get_value()
+    def _commanded_effort(self, context) -> np.ndarray:
+        """The torque the command asks for, on top of gravity."""
+        if self._torque_mode:
+            return np.array(self._commanded.Eval(context))
         state = self._state.Eval(context)
         q, v = state[:NUM_JOINTS], state[NUM_JOINTS:]
-        gravity = self._gravity.Eval(context)
+        return self._kp * (self._commanded.Eval(context) - q) - self._kd * v
+
+    def _calc_actuation(self, context, output: BasicVector) -> None:
+        memory = context.get_discrete_state(self._memory).get_value()
         if memory[2] > 0.5:
-            u = self._kp * (memory[3:] - q) - self._kd * v
-        elif self._torque_mode:
-            u = np.array(self._commanded.Eval(context))
+            state = self._state.Eval(context)
+            q, v = state[:NUM_JOINTS], state[NUM_JOINTS:]
+            q_hold, tau_hold = memory[3 : 3 + NUM_JOINTS], memory[3 + NUM_JOINTS :]
+            u = tau_hold + self._kp * (q_hold - q) - self._kd * v
         else:
-            u = self._kp * (self._commanded.Eval(context) - q) - self._kd * v
+            u = self._commanded_effort(context)
+        gravity = self._gravity.Eval(context)
         output.SetFromVector(np.clip(u + gravity, -self._limits, self._limits))
 
 

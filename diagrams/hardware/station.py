@@ -44,7 +44,7 @@ from admittance.diagrams.run.metrics import (
     time_mean,
 )
 
-__all__ = ["Station", "BuildStation", "StationRun", "run_station", "station_metrics"]
+__all__ = ["joint_gains", "Station", "BuildStation", "StationRun", "run_station", "station_metrics"]
 
 
 @dataclass
@@ -110,8 +110,7 @@ def BuildStation(config: HardwareConfig, lcm) -> Station:
             mode=config.mode,
             period=period,
             command_timeout=config.command_timeout,
-            joint_stiffness=config.joint_stiffness,
-            joint_damping=config.joint_damping,
+            **joint_gains(arm, config, period),
             effort_limits=model.effort_limits,
             initial_position=PANDA_HOME,
         ),
@@ -160,6 +159,22 @@ def BuildStation(config: HardwareConfig, lcm) -> Station:
     diagram = builder.Build()
     diagram.set_name("station")
     return Station(diagram=diagram, plant=plant, watchdog=watchdog, loggers=loggers, arm_model=arm)
+
+
+def joint_gains(arm: MultibodyPlant, config: HardwareConfig, period: float) -> dict:
+    """The station's joint PD gains, per joint: ``joint_damping`` and ``joint_stiffness``
+    capped where the joint is light. The discrete plant applies the PD's torque explicitly
+    over each step, which is stable for d_i h / M_ii < 2 (M_ii the joint's inertia at the
+    home posture, h the step); the cap keeps d_i <= 0.5 M_ii / h, and k_i <= d_i^2 / M_ii
+    (damping ratio 0.5 or more). The wrist's last joint (M_77 = 0.0067 kg m^2, the Panda
+    without its motors' reflected inertia, which the URDF does not give) gets d = 3.3 N m s/rad.
+    """
+    context = arm.CreateDefaultContext()
+    arm.SetPositions(context, PANDA_HOME)
+    inertia = np.diag(arm.CalcMassMatrix(context))
+    damping = np.minimum(config.joint_damping, 0.5 * inertia / period)
+    stiffness = np.minimum(config.joint_stiffness, damping**2 / inertia)
+    return {"joint_stiffness": stiffness, "joint_damping": damping}
 
 
 @dataclass
