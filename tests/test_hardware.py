@@ -18,6 +18,7 @@ from admittance.diagrams.hardware.messages import (
     check_lcm_url,
     decode_parameters,
     encode_parameters,
+    status_at_rest,
 )
 from admittance.diagrams.hardware.panda import PANDA_HOME
 from admittance.diagrams.hardware.station import run_station, station_metrics
@@ -36,21 +37,7 @@ class FakeClock:
 
 
 def _status(utime: int, q=PANDA_HOME) -> bytes:
-    message = lcmt_panda_status()
-    message.utime = utime
-    message.num_joints = 7
-    message.joint_position = list(q)
-    message.joint_velocity = [0.0] * 7
-    for name in (
-        "joint_position_desired",
-        "joint_velocity_desired",
-        "joint_acceleration_desired",
-        "joint_torque",
-        "joint_torque_desired",
-        "joint_torque_external",
-    ):
-        setattr(message, name, [0.0] * 7)
-    return message.encode()
+    return status_at_rest(utime, q).encode()
 
 
 def _wrench(timestamp: int, fz: float) -> bytes:

@@ -192,3 +192,24 @@ def test_the_controller_killed_mid_press_leaves_the_arm_held_under_2_fr(tmp_path
     assert metrics["peak_force_after_command_loss"] < 2 * 10.0
     hold = [e for e in metrics["watchdog_events"] if e["event"].startswith("hold: newest")]
     assert hold and hold[-1]["time"] == pytest.approx(loss, abs=2e-3)
+
+
+def test_sigterm_makes_the_controller_send_its_last_safe_command_and_exit_0(tmp_path):
+    """memq:// keeps it in the one process: no namespace needed."""
+    import signal
+    import time
+
+    out = tmp_path / "control"
+    process = subprocess.Popen(
+        [ADMITTANCE, "control", "--lcm", "memq://", "--out", str(out)],
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    for line in process.stderr:
+        if "waiting for status" in line:
+            break
+    time.sleep(0.2)
+    process.send_signal(signal.SIGTERM)
+    assert process.wait(timeout=60) == 0
+    assert "hold command: stop requested" in (out / "events.log").read_text()
+    assert json.loads((out / "timing.json").read_text())["cycles"] == 0

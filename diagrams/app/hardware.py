@@ -63,6 +63,8 @@ def station_command(args, progress) -> int:
     config, lcm = _setup(args)
     out = Path(args.out) if args.out else Path("results") / f"{config.name}_station"
     check_output_dir(out, overwrite=args.force)
+    if args.pacer:
+        return _pace(config, lcm, out, args, progress)
     progress(f"station: {config.name}, {config.mode} mode, on {args.lcm}")
     with stop_on_signals() as stop:
         run = run_station(config, lcm, stop=stop)
@@ -98,6 +100,26 @@ def station_command(args, progress) -> int:
     return 0
 
 
+def _pace(config, lcm, out: Path, args, progress) -> int:
+    """`station --pacer`: the robot's messages at its rate without a simulation."""
+    from admittance.diagrams.hardware.pacer import StatusPacer
+
+    progress(f"pacer: status and wrench at {config.rate:g} Hz for {config.duration:g} s")
+    pacer = StatusPacer(lcm, rate=config.rate, force=config.force_reference)
+    with stop_on_signals() as stop:
+        figures = pacer.run(config.duration, stop)
+    with result_folder(out, overwrite=args.force) as folder:
+        folder.write_json("pacer.json", figures)
+    trip = figures["round_trip"]
+    print(
+        f"pacer: {figures['statuses']} statuses, {figures['unanswered']} unanswered, "
+        f"{figures['answered_within_period']} answered within the period; round trip p50 "
+        f"{_ms(trip['p50'])} p99 {_ms(trip['p99'])} max {_ms(trip['max'])}"
+    )
+    print(folder.describe(out))
+    return 0
+
+
 def control_command(args, progress) -> int:
     """Runs the controller until the status clock reaches the duration; writes timing.json,
     events.log and trace.csv."""
@@ -106,7 +128,7 @@ def control_command(args, progress) -> int:
     config, lcm = _setup(args)
     out = Path(args.out) if args.out else Path("results") / f"{config.name}_control"
     check_output_dir(out, overwrite=args.force)
-    controller = AdmittanceController(config, lcm)
+    controller = AdmittanceController(config, lcm, newest_only=True)
     progress(f"control: {config.name} at {config.rate:g} Hz on {args.lcm}, waiting for status")
     failure = None
     with stop_on_signals() as stop:

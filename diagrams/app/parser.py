@@ -284,6 +284,13 @@ def _add_hardware_commands(commands, handlers: Mapping[str, Callable]) -> None:
         command.add_argument("--out", help=f"output folder (default: {default})")
         command.add_argument("--force", action="store_true", help=FORCE_HELP)
         command.set_defaults(handler=handlers[name])
+    station = commands.choices["station"]
+    station.add_argument(
+        "--pacer",
+        action="store_true",
+        help="no simulation: publish the status and wrench at the robot's rate from a fixed "
+        "posture and time the controller's answers (pacer.json)",
+    )
 
 
 # --- main ---------------------------------------------------------------------------------

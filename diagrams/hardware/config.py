@@ -65,12 +65,14 @@ class HardwareConfig:
     force_bound_gain: float = 4.0
     # Furthest the law's offset may push past the plan, m.
     max_push: float = 0.08
-    # Cartesian PID stiffness (translation, N/m; rotation, N m/rad).
+    # Cartesian PD stiffness (translation, N/m; rotation, N m/rad).
     translational_stiffness: float = 1000.0
-    rotational_stiffness: float = 60.0
-    # Cartesian PID damping (translation, N s/m; rotation, N m s/rad).
+    rotational_stiffness: float = 20.0
+    # Cartesian PD damping (translation, N s/m; rotation, N m s/rad). The rotation's damping
+    # reaches the wrist's last joint (0.0067 kg m^2) almost alone: with the command one
+    # period late it needs d T / M_77 below about 1 (1.5 N m s/rad holds down to 250 Hz).
     translational_damping: float = 80.0
-    rotational_damping: float = 6.0
+    rotational_damping: float = 1.5
     # Null-space posture stiffness and damping of the redundant joint, N m/rad, N m s/rad.
     posture_stiffness: float = 5.0
     posture_damping: float = 2.0

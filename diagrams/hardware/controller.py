@@ -39,8 +39,11 @@ from admittance.diagrams.hardware.timing import CycleTiming
 __all__ = ["AdmittanceController", "ControllerEvent", "StationGoneError"]
 
 NUM_JOINTS = 7
-# How long the controller waits for the station's first status, s.
-START_TIMEOUT = 20.0
+# How long the controller waits for the station's first status, s (a loaded machine takes
+# tens of seconds to start a Python process with Drake).
+START_TIMEOUT = 60.0
+# A station that falls silent this close to the run's end has ended the run, s.
+END_SLACK = 0.1
 
 
 class StationGoneError(RuntimeError):
@@ -69,6 +72,12 @@ class AdmittanceController:
     Args:
         clock: the wall clock of the watchdogs (monotonic seconds); tests pass their own.
         cpu_clock: the CPU clock of the timing figures.
+        newest_only: a process's mode: statuses are only stored as they arrive, and
+            :meth:`poll` runs one cycle on the newest (a controller that falls behind
+            answers the newest status and skips the older ones, counted in
+            ``timing.skipped``). Otherwise each status runs its cycle as it is handled (one
+            process sharing a memq:// instance with the station, where the station's own
+            LCM pump delivers it).
     """
 
     def __init__(
@@ -78,6 +87,7 @@ class AdmittanceController:
         *,
         clock: Callable[[], float] = time.monotonic,
         cpu_clock: Callable[[], float] = time.thread_time,
+        newest_only: bool = False,
     ) -> None:
         if config.mode != "torque":
             raise ValueError("the controller runs the torque interface only (mode: torque)")
@@ -105,6 +115,9 @@ class AdmittanceController:
         self._last_status_wall: float | None = None
         self._started_wall = clock()
         self._wrench: lcmt_force_torque | None = None
+        self._wrench_payload: bytes | None = None
+        self._newest_only = newest_only
+        self._pending: tuple[bytes, float] | None = None
         self._wrench_fault = False
         self._status_lost = False
         self._plan: tuple | None = None
@@ -119,7 +132,7 @@ class AdmittanceController:
         self.events.append(ControllerEvent(self.time or 0.0, self._clock(), what))
 
     def _on_wrench(self, payload: bytes) -> None:
-        self._wrench = lcmt_force_torque.decode(payload)
+        self._wrench_payload = payload  # decoded by the cycle that reads it
 
     def _on_parameters(self, payload: bytes) -> None:
         try:
@@ -143,6 +156,9 @@ class AdmittanceController:
 
     def _measured_force(self, R_WS) -> float | None:
         """The press force (world +z on the tool), or None if the wrench is invalid."""
+        if self._wrench_payload is not None:
+            self._wrench = lcmt_force_torque.decode(self._wrench_payload)
+            self._wrench_payload = None
         wrench = self._wrench
         reason = None
         if wrench is None:
@@ -166,6 +182,14 @@ class AdmittanceController:
 
     def _on_status(self, payload: bytes) -> None:
         arrival = self._clock()
+        if not self._newest_only:
+            self._cycle(payload, arrival)
+            return
+        if self._pending is not None:
+            self.timing.skipped += 1
+        self._pending = (payload, arrival)
+
+    def _cycle(self, payload: bytes, arrival: float) -> None:
         cpu = self._cpu_clock()
         status = lcmt_panda_status.decode(payload)
         dt = (status.utime - self._last_utime) * 1e-6 if self._last_status_wall else 0.0
@@ -239,6 +263,9 @@ class AdmittanceController:
                 )
             return
         silent = now - self._last_status_wall
+        if silent > self.config.station_timeout and self.time >= self.config.duration - END_SLACK:
+            self.finished = True  # the station ended with the run (its last statuses lost)
+            return
         if silent > self.config.station_timeout:
             self.safe_command("station gone")
             raise StationGoneError(
@@ -254,6 +281,10 @@ class AdmittanceController:
     def poll(self, timeout: float) -> None:
         """Handles the messages that arrive within `timeout` s, then the watchdogs."""
         self._lcm.HandleSubscriptions(max(0, int(round(timeout * 1e3))))
+        if self._pending is not None:
+            payload, arrival = self._pending
+            self._pending = None
+            self._cycle(payload, arrival)
         self.check_watchdogs()
 
     def run(self, stop: Callable[[], bool] = lambda: False, report=None) -> str:

@@ -16,11 +16,14 @@ import json
 import math
 from dataclasses import dataclass
 
+from drake import lcmt_panda_status
+
 __all__ = [
     "CHANNELS",
     "Channels",
     "PARAMETER_KEYS",
     "check_lcm_url",
+    "status_at_rest",
     "decode_parameters",
     "encode_parameters",
 ]
@@ -72,6 +75,26 @@ def decode_parameters(payload: bytes) -> dict[str, float]:
             raise ValueError(f"parameters: {key} out of range, got {value}")
         checked[key] = value
     return checked
+
+
+def status_at_rest(utime: int, positions) -> lcmt_panda_status:
+    """An ``lcmt_panda_status`` of an arm at rest at `positions` (zero velocities, torques
+    and desired values), as a test or a pacer sends it."""
+    message = lcmt_panda_status()
+    message.utime = int(utime)
+    message.num_joints = len(positions)
+    message.joint_position = [float(x) for x in positions]
+    for name in (
+        "joint_velocity",
+        "joint_position_desired",
+        "joint_velocity_desired",
+        "joint_acceleration_desired",
+        "joint_torque",
+        "joint_torque_desired",
+        "joint_torque_external",
+    ):
+        setattr(message, name, [0.0] * len(positions))
+    return message
 
 
 def check_lcm_url(url: str) -> str:

@@ -4,7 +4,8 @@ and CPU time per cycle, summarized as ``timing.json``.
 Per status message the controller records the wall (monotonic) time it began handling it,
 the time its command was published and the CPU time the cycle took. The period jitter is
 |arrival interval - period|; a cycle misses its deadline when its command goes out later
-than one period after its status arrived (the next status is then due before it is done).
+than one period after its status arrived (the next status is then due before it is done);
+a status that a newer one replaced before its cycle ran is skipped (``skipped_statuses``).
 """
 
 from __future__ import annotations
@@ -14,10 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["CycleTiming"]
+__all__ = ["CycleTiming", "quantiles"]
 
 
-def _quantiles(values: np.ndarray) -> dict[str, float | None]:
+def quantiles(values: np.ndarray) -> dict[str, float | None]:
     if values.size == 0:
         return {"p50": None, "p99": None, "max": None}
     return {
@@ -35,6 +36,8 @@ class CycleTiming:
         self._arrivals: list[float] = []
         self._published: list[float] = []
         self._cpu: list[float] = []
+        # Statuses received but not answered: a newer one came before the cycle ran.
+        self.skipped = 0
 
     def record(self, arrival: float, published: float, cpu: float) -> None:
         self._arrivals.append(arrival)
@@ -54,10 +57,11 @@ class CycleTiming:
         return {
             "period": self.period,
             "cycles": int(arrivals.size),
-            "period_jitter": _quantiles(jitter),
-            "latency": _quantiles(latency),
-            "cpu_per_cycle": _quantiles(cpu),
+            "period_jitter": quantiles(jitter),
+            "latency": quantiles(latency),
+            "cpu_per_cycle": quantiles(cpu),
             "missed_deadlines": int(np.count_nonzero(latency > self.period)),
+            "skipped_statuses": self.skipped,
             "achieved_rate": (
                 float((arrivals.size - 1) / (arrivals[-1] - arrivals[0]))
                 if arrivals.size > 1 and arrivals[-1] > arrivals[0]
