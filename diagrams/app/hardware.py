@@ -85,10 +85,11 @@ def station_command(args, progress) -> int:
         folder.write_json("metrics.json", metrics)
         folder.write_text("scenario.yaml", yaml.safe_dump(vars(config), sort_keys=False))
     loss = metrics["command_loss_time"]
+    final = float(run.force[-1]) if run.force.size else float("nan")
     peak = metrics["peak_force_after_command_loss"]
     print(
         f"station: {metrics['simulated_time']:.3f} s simulated at "
-        f"{metrics['real_time_rate']:.2f}x real time; force {metrics['steady_state_force']:.3f} N "
+        f"{metrics['real_time_rate']:.2f}x real time; force at the end {final:.3f} N "
         f"(Fr {config.force_reference:g} N); "
         + (
             f"commands lost at {loss:.3f} s, peak force after {peak:.3f} N"
