@@ -129,6 +129,34 @@ def test_station_status_and_command_round_trip_through_drakes_sender_and_receive
     assert run.hold[-1] == 0.0
 
 
+def test_position_mode_tracks_the_commanded_joint_positions():
+    """mode: position: the station's joint PD, gravity compensated, brings the arm at rest
+    to the commanded positions (no steady-state error: gravity is cancelled, nothing else
+    loads the free arm); joint 1 moved by 0.05 rad, read back from the status."""
+    lcm = DrakeLcm("memq://")
+    target = PANDA_HOME + np.array([0.05, 0, 0, 0, 0, 0, 0])
+    statuses = []
+
+    def answer(data):
+        status = lcmt_panda_status.decode(data)
+        statuses.append(status)
+        command = lcmt_panda_command()
+        command.utime = status.utime
+        command.num_joint_position = 7
+        command.joint_position = list(target)
+        command.control_mode_expected = 1  # PandaControlMode.kPosition
+        lcm.Publish(CHANNELS.command, command.encode())
+
+    lcm.Subscribe(CHANNELS.status, answer)
+    config = load_hardware_config(
+        None, ["duration=0.6", "realtime_rate=0", "command_wait=0", "mode=position"]
+    )
+    run = run_station(config, lcm)
+    assert run.hold[-1] == 0.0
+    np.testing.assert_allclose(statuses[-1].joint_position, target, atol=1e-3)
+    assert abs(statuses[len(statuses) // 10].joint_position[0] - PANDA_HOME[0]) > 1e-3
+
+
 # --- the law ------------------------------------------------------------------------------
 
 
