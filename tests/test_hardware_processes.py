@@ -80,11 +80,16 @@ def _metrics(tmp_path: Path) -> dict:
     return json.loads((tmp_path / "station" / "metrics.json").read_text())
 
 
-def test_a_url_that_could_leave_the_machine_is_refused_in_one_line(tmp_path, capsys):
+def test_a_url_that_could_leave_the_machine_or_a_bad_key_is_refused_in_one_line(tmp_path, capsys):
     status = main(["control", "--lcm", "udpm://239.255.76.67:7667", "--out", str(tmp_path / "c")])
     error = capsys.readouterr().err.strip()
     assert status == 2 and "ttl" in error and "\n" not in error
     assert not (tmp_path / "c").exists()
+    for bad, key in (("gama=1", "gama"), ("mode=velocity", "mode"), ("rate=-5", "rate")):
+        status = main(["station", "--lcm", "memq://", "--set", bad, "--out", str(tmp_path / "s")])
+        error = capsys.readouterr().err.strip()
+        assert status == 2 and error.startswith(f"admittance: error: {key}: ") and "\n" not in error
+    assert not (tmp_path / "s").exists()
 
 
 # A responder answers one lcmt_panda_status with an lcmt_panda_command of the same utime;
