@@ -18,7 +18,9 @@ Watchdogs, each logged with its time:
   fresh command, holds the arm if the silence lasts; zero torque would drop the press and
   the law, seeing the force fall, would wind up;
 * no status for ``station_timeout`` s: the station is gone (``StationGoneError``);
-* SIGINT or SIGTERM (the caller's ``stop``): the safe command once more, then a clean stop.
+* SIGINT or SIGTERM (the caller's ``stop``): the hold command once more, then a clean stop;
+  the run's end (the status clock at ``duration``, or a station that falls silent within
+  ``END_SLACK`` of it) ends it the same way.
 """
 
 from __future__ import annotations
@@ -195,6 +197,8 @@ class AdmittanceController:
         dt = (status.utime - self._last_utime) * 1e-6 if self._last_status_wall else 0.0
         if self._last_status_wall is not None and status.utime <= self._last_utime:
             return  # a repeated or older status: nothing new to act on
+        if dt > 1.5 * self.period:  # statuses that never arrived (or were skipped)
+            self.timing.gaps += int(round(dt / self.period)) - 1
         self._last_utime = status.utime
         self._last_status_wall = arrival
         self.time = status.utime * 1e-6

@@ -89,8 +89,8 @@ def BuildStation(config: HardwareConfig, lcm) -> Station:
     )
     builder.Connect(plant.get_state_output_port(), gravity.get_input_port_estimated_state())
 
-    interface = builder.AddNamedSystem("lcm", LcmInterfaceSystem(lcm))
-    del interface
+    # Pumps the LCM instance once per step (its subscribers' messages reach the diagram).
+    builder.AddNamedSystem("lcm", LcmInterfaceSystem(lcm))
     subscriber = builder.AddNamedSystem(
         "command_subscriber",
         LcmSubscriberSystem.Make(

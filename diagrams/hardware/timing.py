@@ -38,6 +38,9 @@ class CycleTiming:
         self._cpu: list[float] = []
         # Statuses received but not answered: a newer one came before the cycle ran.
         self.skipped = 0
+        # Statuses between two answered ones that were not answered (skipped or never
+        # received), counted from the gaps in utime.
+        self.gaps = 0
 
     def record(self, arrival: float, published: float, cpu: float) -> None:
         self._arrivals.append(arrival)
@@ -62,6 +65,7 @@ class CycleTiming:
             "cpu_per_cycle": quantiles(cpu),
             "missed_deadlines": int(np.count_nonzero(latency > self.period)),
             "skipped_statuses": self.skipped,
+            "unanswered_statuses": self.gaps,
             "achieved_rate": (
                 float((arrivals.size - 1) / (arrivals[-1] - arrivals[0]))
                 if arrivals.size > 1 and arrivals[-1] > arrivals[0]
