@@ -62,8 +62,8 @@ def panda_urdf_path() -> Path:
         if path.is_file():
             return path
     raise FileNotFoundError(
-        "the Panda's URDF was not found: pip install example-robot-data (it ships "
-        "robots/panda_description/urdf/panda.urdf)"
+        "the Panda's URDF was not found: pip install \"optimal-admittance[robots]\" (the "
+        "example-robot-data distribution ships robots/panda_description/urdf/panda.urdf)"
     )
 
 
