@@ -23,7 +23,7 @@ LIBRARY = {"systems": "admittance.systems", "diagrams": "admittance.diagrams"}
 # A module longer than this holds more than one topic.
 MAX_MODULE_LINES = 600
 # The concept packages of admittance.diagrams.
-CONCEPTS = ("scenario", "robots", "loop", "run", "analysis", "views", "app")
+CONCEPTS = ("scenario", "robots", "loop", "run", "analysis", "views", "hardware", "app")
 
 
 def _library_files() -> dict[str, Path]:

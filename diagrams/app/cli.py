@@ -48,6 +48,8 @@ DRAKE_MODULES = (
     "pydrake.common.value",
     "pydrake.common.yaml",
     "pydrake.geometry",
+    "pydrake.lcm",
+    "pydrake.manipulation",
     "pydrake.math",
     "pydrake.multibody.math",
     "pydrake.multibody.parsing",
@@ -55,7 +57,9 @@ DRAKE_MODULES = (
     "pydrake.multibody.tree",
     "pydrake.symbolic",
     "pydrake.systems.analysis",
+    "pydrake.systems.controllers",
     "pydrake.systems.framework",
+    "pydrake.systems.lcm",
     "pydrake.systems.primitives",
     "pydrake.systems.scalar_conversion",
     "pydrake.trajectories",
@@ -361,6 +365,18 @@ def _cmd_sweep(args: argparse.Namespace, progress) -> int:
     return 0
 
 
+def _cmd_station(args: argparse.Namespace, progress) -> int:
+    from admittance.diagrams.app.hardware import station_command
+
+    return station_command(args, progress)
+
+
+def _cmd_control(args: argparse.Namespace, progress) -> int:
+    from admittance.diagrams.app.hardware import control_command
+
+    return control_command(args, progress)
+
+
 # --- the parser ---------------------------------------------------------------------------
 
 
@@ -373,6 +389,8 @@ HANDLERS = {
     "grasp-compare": _cmd_grasp_compare,
     "bench": _cmd_bench,
     "sweep": _cmd_sweep,
+    "station": _cmd_station,
+    "control": _cmd_control,
 }
 
 

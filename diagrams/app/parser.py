@@ -254,7 +254,43 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
         "--force", action="store_true", help="start over in a folder of another sweep (or result)"
     )
     sweep.set_defaults(handler=handlers["sweep"])
+    _add_hardware_commands(commands, handlers)
     return parser
+
+
+LCM_HELP = "LCM URL: memq:// (one process) or udpm://GROUP:PORT?ttl=0 (packets stay on this host)"
+
+
+def _add_hardware_commands(commands, handlers: Mapping[str, Callable]) -> None:
+    """`station` and `control`: the robot (simulated) and the controller as two processes
+    that speak Drake's LCM driver messages (docs/hardware.md)."""
+    for name, help, default in (
+        (
+            "station",
+            "simulate the Panda in real time as the robot would be: publish its status and "
+            "wrist wrench on LCM, apply the commands it receives, hold the arm when they stop",
+            "results/<scenario>_station",
+        ),
+        (
+            "control",
+            "run the admittance controller alone at the robot's rate, reading only LCM "
+            "status and wrench messages and publishing commands; timing.json and events.log",
+            "results/<scenario>_control",
+        ),
+    ):
+        command = _subcommand(commands, name, help)
+        command.set_defaults(scenario="panda_surface_press")
+        command.add_argument("--lcm", required=True, metavar="URL", help=LCM_HELP)
+        command.add_argument("--out", help=f"output folder (default: {default})")
+        command.add_argument("--force", action="store_true", help=FORCE_HELP)
+        command.set_defaults(handler=handlers[name])
+    station = commands.choices["station"]
+    station.add_argument(
+        "--pacer",
+        action="store_true",
+        help="no simulation: publish the status and wrench at the robot's rate from a fixed "
+        "posture and time the controller's answers (pacer.json)",
+    )
 
 
 # --- main ---------------------------------------------------------------------------------

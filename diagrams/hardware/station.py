@@ -1,0 +1,326 @@
+"""The station: the Panda simulated in real time, speaking only the messages the robot
+and its wrist sensor would (Drake's hardware_sim convention).
+
+    PANDA_STATUS   lcmt_panda_status   PandaStatusSender, every period
+    PANDA_FT       lcmt_force_torque   the wrist sensor's tared wrench, every period
+    PANDA_COMMAND  lcmt_panda_command  PandaCommandReceiver -> the command watchdog
+
+The plant is the Panda of example-robot-data with a welded tool and a table, through
+Drake's contact engine (point contact). The station's clock is its simulated time; the
+status ``utime`` is that time in microseconds, so a controller that keeps its clock from
+the status gives the same answer whether the station runs at real time or slower.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from drake import lcmt_force_torque, lcmt_panda_command, lcmt_panda_status
+from pydrake.manipulation import PandaCommandReceiver, PandaControlMode, PandaStatusSender
+from pydrake.multibody.plant import (
+    AddMultibodyPlant,
+    MultibodyPlant,
+    MultibodyPlantConfig,
+)
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.controllers import InverseDynamics
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem, LcmSubscriberSystem
+from pydrake.systems.primitives import Demultiplexer, LogVectorOutput
+
+from admittance.diagrams.hardware.config import HardwareConfig
+from admittance.diagrams.hardware.interface import CommandWatchdog, WristWrenchSensor
+from admittance.diagrams.hardware.messages import CHANNELS
+from admittance.diagrams.hardware.panda import PANDA_HOME, TOOL_LENGTH, AddPanda
+from admittance.diagrams.run.metrics import (
+    final_window,
+    first_contact_time,
+    in_contact,
+    settled_from,
+    time_mean,
+)
+
+__all__ = ["joint_gains", "Station", "BuildStation", "StationRun", "run_station", "station_metrics"]
+
+
+@dataclass
+class Station:
+    """The station's diagram and the systems a run reads."""
+
+    diagram: Diagram
+    plant: MultibodyPlant
+    watchdog: CommandWatchdog
+    loggers: dict
+    # The gravity compensation's own model, kept alive beside the diagram that uses it.
+    arm_model: MultibodyPlant
+
+
+def BuildStation(config: HardwareConfig, lcm) -> Station:
+    """The station of `config` on the LCM instance `lcm` (a DrakeLcm)."""
+    period = 1.0 / config.rate
+    builder = DiagramBuilder()
+    plant, _ = AddMultibodyPlant(
+        MultibodyPlantConfig(
+            time_step=period, contact_model="point", discrete_contact_approximation="sap"
+        ),
+        builder,
+    )
+    plant.set_name("panda_plant")
+    model = AddPanda(
+        plant,
+        table_height=config.table_height,
+        contact_stiffness=config.contact_stiffness,
+        contact_dissipation=config.contact_dissipation,
+    )
+    plant.Finalize()
+    plant.SetDefaultPositions(PANDA_HOME)
+
+    # The robot's own model for its gravity compensation (arm and tool, no table).
+    arm = MultibodyPlant(0.0)
+    AddPanda(arm)
+    arm.Finalize()
+    gravity = builder.AddNamedSystem(
+        "gravity_compensation",
+        InverseDynamics(arm, InverseDynamics.InverseDynamicsMode.kGravityCompensation),
+    )
+    builder.Connect(plant.get_state_output_port(), gravity.get_input_port_estimated_state())
+
+    # Pumps the LCM instance once per step (its subscribers' messages reach the diagram).
+    builder.AddNamedSystem("lcm", LcmInterfaceSystem(lcm))
+    subscriber = builder.AddNamedSystem(
+        "command_subscriber",
+        LcmSubscriberSystem.Make(
+            CHANNELS.command, lcmt_panda_command, lcm, use_cpp_serializer=True
+        ),
+    )
+    mode = PandaControlMode.kTorque if config.mode == "torque" else PandaControlMode.kPosition
+    receiver = builder.AddNamedSystem("command_receiver", PandaCommandReceiver(7, mode))
+    split = builder.AddNamedSystem("state_split", Demultiplexer([7, 7]))
+    builder.Connect(plant.get_state_output_port(), split.get_input_port())
+    builder.Connect(subscriber.get_output_port(), receiver.get_message_input_port())
+    builder.Connect(split.get_output_port(0), receiver.get_position_measured_input_port())
+
+    watchdog = builder.AddNamedSystem(
+        "command_watchdog",
+        CommandWatchdog(
+            mode=config.mode,
+            period=period,
+            command_timeout=config.command_timeout,
+            **joint_gains(arm, config, period),
+            effort_limits=model.effort_limits,
+            initial_position=PANDA_HOME,
+        ),
+    )
+    # The watchdog reads the same channel decoded in Python (the receiver's is C++'s).
+    watched = builder.AddNamedSystem(
+        "command_watch_subscriber",
+        LcmSubscriberSystem.Make(CHANNELS.command, lcmt_panda_command, lcm),
+    )
+    builder.Connect(watched.get_output_port(), watchdog.GetInputPort("lcmt_panda_command"))
+    builder.Connect(receiver.get_output_port(0), watchdog.GetInputPort("commanded"))
+    builder.Connect(plant.get_state_output_port(), watchdog.GetInputPort("state"))
+    builder.Connect(
+        gravity.get_output_port_generalized_force(),
+        watchdog.GetInputPort("gravity_compensation"),
+    )
+    builder.Connect(watchdog.GetOutputPort("actuation"), plant.get_actuation_input_port())
+
+    status = builder.AddNamedSystem("status_sender", PandaStatusSender(7))
+    builder.Connect(split.get_output_port(0), status.GetInputPort("position_measured"))
+    builder.Connect(split.get_output_port(1), status.GetInputPort("velocity_measured"))
+    builder.Connect(watchdog.GetOutputPort("actuation"), status.GetInputPort("torque_commanded"))
+    builder.Connect(watchdog.GetOutputPort("actuation"), status.GetInputPort("torque_measured"))
+    status_publisher = builder.AddNamedSystem(
+        "status_publisher",
+        LcmPublisherSystem.Make(
+            CHANNELS.status, lcmt_panda_status, lcm, period, use_cpp_serializer=True
+        ),
+    )
+    builder.Connect(status.get_output_port(), status_publisher.get_input_port())
+
+    sensor = builder.AddNamedSystem("wrist_sensor", WristWrenchSensor(plant, model.tool))
+    builder.Connect(plant.get_contact_results_output_port(), sensor.GetInputPort("contact_results"))
+    builder.Connect(plant.get_body_poses_output_port(), sensor.GetInputPort("body_poses"))
+    wrench_publisher = builder.AddNamedSystem(
+        "wrench_publisher",
+        LcmPublisherSystem.Make(CHANNELS.wrench, lcmt_force_torque, lcm, period),
+    )
+    builder.Connect(sensor.GetOutputPort("lcmt_force_torque"), wrench_publisher.get_input_port())
+
+    loggers = {
+        "state": LogVectorOutput(plant.get_state_output_port(), builder, period),
+        "wrench": LogVectorOutput(sensor.GetOutputPort("wrench"), builder, period),
+        "hold": LogVectorOutput(watchdog.GetOutputPort("hold"), builder, period),
+    }
+    diagram = builder.Build()
+    diagram.set_name("station")
+    return Station(diagram=diagram, plant=plant, watchdog=watchdog, loggers=loggers, arm_model=arm)
+
+
+def joint_gains(arm: MultibodyPlant, config: HardwareConfig, period: float) -> dict:
+    """The station's joint PD gains, per joint: ``joint_damping`` and ``joint_stiffness``
+    capped where the joint is light. The discrete plant applies the PD's torque explicitly
+    over each step, which is stable for d_i h / M_ii < 2 (M_ii the joint's inertia at the
+    home posture, h the step); the cap keeps d_i <= 0.5 M_ii / h, and k_i <= d_i^2 / M_ii
+    (damping ratio 0.5 or more). The wrist's last joint (M_77 = 0.0067 kg m^2, the Panda
+    without its motors' reflected inertia, which the URDF does not give) gets d = 3.3 N m s/rad.
+    """
+    context = arm.CreateDefaultContext()
+    arm.SetPositions(context, PANDA_HOME)
+    inertia = np.diag(arm.CalcMassMatrix(context))
+    damping = np.minimum(config.joint_damping, 0.5 * inertia / period)
+    stiffness = np.minimum(config.joint_stiffness, damping**2 / inertia)
+    return {"joint_stiffness": stiffness, "joint_damping": damping}
+
+
+@dataclass
+class StationRun:
+    """What a station run measured."""
+
+    times: np.ndarray
+    # The contact force on the tool along the world's +z (the press force), N.
+    force: np.ndarray
+    hold: np.ndarray
+    tip_height: np.ndarray
+    wall_time: float
+    real_time_rate: float
+    events: list = field(default_factory=list)
+    interrupted: bool = False
+    # Statuses the controller did not answer within command_wait.
+    late_commands: int = 0
+
+
+class _CommandClock:
+    """The utime of the newest command the station received, read from the raw message
+    (an LCM message's utime follows its 8-byte fingerprint), and the count of late ones."""
+
+    def __init__(self, lcm) -> None:
+        self.command = -1
+        self.late = 0
+        lcm.Subscribe(CHANNELS.command, self._on_command)
+
+    def _on_command(self, data: bytes) -> None:
+        self.command = max(self.command, struct.unpack(">q", data[8:16])[0])
+
+    def wait_for_answer(self, lcm, status_utime: int, budget: float, timeout: float) -> None:
+        """Waits up to `budget` s (wall) for the command answering the status of
+        `status_utime`; a controller that has not spoken yet, or whose newest command is
+        more than `timeout` s (the watchdog's) behind, is not waited for."""
+        lcm.HandleSubscriptions(0)
+        if self.command < 0 or budget <= 0 or status_utime - self.command > timeout * 1e6:
+            return
+        deadline = time.monotonic() + budget
+        while self.command < status_utime:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                self.late += 1
+                return
+            lcm.HandleSubscriptions(max(1, int(remaining * 1e3)))
+
+
+def run_station(config: HardwareConfig, lcm, *, progress=None, stop=None) -> StationRun:
+    """Runs the station for ``config.duration`` of simulated time, paced to
+    ``config.realtime_rate`` where the machine can; `stop()` returning True ends it early.
+
+    One period at a time: after each status it gives the controller up to
+    ``command_wait`` s of wall time to answer (the robot gives it one cycle; a simulated
+    station on a loaded machine gives it more, so that the plant sees the one-period delay
+    of a controller that meets its deadline, and the station's slowness shows only in its
+    real-time rate). A later command is counted late (``late_commands``) and the station
+    goes on with the newest command it has; once the commands are older than the
+    watchdog's timeout it stops waiting. The controller's own timing (timing.json) says
+    whether it meets the deadline.
+    """
+    station = BuildStation(config, lcm)
+    simulator = Simulator(station.diagram)
+    simulator.set_target_realtime_rate(config.realtime_rate)
+    clock = _CommandClock(lcm)
+    simulator.Initialize()
+    start = time.monotonic()
+    period = 1.0 / config.rate
+    steps = int(round(config.duration * config.rate))
+    interrupted = False
+    for step in range(1, steps + 1):
+        if stop is not None and stop():
+            interrupted = True
+            break
+        # The status of the previous step's end (utime (step - 1) period) is out.
+        status_utime = int(round((step - 1) * period * 1e6))
+        clock.wait_for_answer(lcm, status_utime, config.command_wait, config.command_timeout)
+        simulator.AdvanceTo(step * period)
+        if progress is not None and step % 100 == 0:
+            progress(step * period)
+    wall = time.monotonic() - start
+    context = simulator.get_context()
+    logs = {name: logger.FindLog(context) for name, logger in station.loggers.items()}
+    simulated = context.get_time()
+    wrench = logs["wrench"].data()
+    return StationRun(
+        times=logs["wrench"].sample_times().copy(),
+        force=wrench[2].copy(),
+        hold=np.interp(
+            logs["wrench"].sample_times(), logs["hold"].sample_times(), logs["hold"].data()[0]
+        ),
+        tip_height=_tip_heights(station, logs["state"]),
+        wall_time=wall,
+        real_time_rate=simulated / wall if wall > 0 else float("inf"),
+        events=list(station.watchdog.events),
+        interrupted=interrupted,
+        late_commands=clock.late,
+    )
+
+
+def _tip_heights(station: Station, log) -> np.ndarray:
+    """The tool tip's height above the base at each logged state, m."""
+    plant = station.plant
+    context = plant.CreateDefaultContext()
+    frame = plant.GetBodyByName("tool").body_frame()
+    p_ST = np.array([0.0, 0.0, TOOL_LENGTH])
+    heights = []
+    for x in log.data().T:
+        plant.SetPositionsAndVelocities(context, x)
+        heights.append(frame.CalcPoseInWorld(context).multiply(p_ST)[2])
+    return np.asarray(heights)
+
+
+def station_metrics(run: StationRun, config: HardwareConfig) -> dict:
+    """The station's metrics: the press force's settling and steady state (the shared
+    rules of ``run.metrics``), the real-time rate, and what followed a command loss.
+
+    ``command_loss_time`` is the first time the watchdog held the arm after commands had
+    flowed (None: never); ``peak_force_after_command_loss`` the largest force from then on.
+    """
+    times, force, hold = run.times, run.force, run.hold > 0.5
+    commanded = np.nonzero(~hold)[0]
+    loss_time = None
+    if commanded.size:
+        later = np.nonzero(hold[commanded[0] :])[0]
+        if later.size:
+            loss_time = float(times[commanded[0] + later[0]])
+    end = loss_time if loss_time is not None else math.inf
+    reference = config.force_reference
+    settled = settled_from(times, force, reference, 0.0, end)
+    steady = final_window(times) & (times < end)
+    mean = time_mean(times[steady], force[steady]) if steady.any() else math.nan
+    after = times >= loss_time if loss_time is not None else np.zeros_like(hold)
+    return {
+        "force_reference": reference,
+        "settling_time": settled,
+        "steady_state_force": mean,
+        "steady_state_error": abs(mean - reference) / reference if math.isfinite(mean) else None,
+        "peak_force": float(np.max(force)) if force.size else None,
+        "first_contact_time": first_contact_time(times, in_contact(force, reference)),
+        "simulated_time": float(times[-1]) if times.size else 0.0,
+        "wall_time": run.wall_time,
+        "real_time_rate": run.real_time_rate,
+        "target_realtime_rate": config.realtime_rate,
+        "command_loss_time": loss_time,
+        "peak_force_after_command_loss": float(np.max(force[after])) if after.any() else None,
+        "watchdog_events": [{"time": t, "event": what} for t, what in run.events],
+        "late_commands": run.late_commands,
+        "interrupted": run.interrupted,
+    }
