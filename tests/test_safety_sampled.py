@@ -165,6 +165,60 @@ def test_latency_lowers_the_critical_gamma_at_1_khz():
     assert values[0] < 0.1 * 9.9e-5
 
 
+def _sampled_law(plant, latency: float):
+    from admittance.diagrams.robots.planar_arm import SolvePlanarInverseKinematics
+    from admittance.systems.safe_admittance import SafeAdmittance
+
+    law = SafeAdmittance(
+        plant,
+        gamma=1e-5,
+        alpha=0.1,
+        stiffness=1200.0,
+        pid_kp=1200.0,
+        pid_kd=170.0,
+        max_force=10.0,
+        force_bound_gain=4.0,
+        max_push=0.01,
+        max_stiffness=1e6,
+        damping_ratio=0.25,
+        stability_margin=3.0,
+        filter_time_constant=FILTER,
+        contact_force=0.5,
+        detection_delay=0.02,
+        period=1e-3,
+        latency=latency,
+    )
+    pose = [0.15, -0.25, np.pi / 2]
+    q = SolvePlanarInverseKinematics(plant, "fingertip", pose, [-0.45, 1.66, 0.36])
+    return law, np.concatenate([q, np.zeros(3)])
+
+
+def test_the_schedule_lowers_gamma_with_latency(arm_plant):
+    """The layer at 1 kHz on the prior Ke_max = 1e6 N/m: its Gamma_s = s Gamma falls as
+    the latency grows (0, 0.25, 0.5 ms), and 3 Gamma_s (the margin) sits on the sampled
+    loop's stability boundary: the spectral radius of the reduced map there is 1 within
+    the cache's rounding (0.3 %) and the bisection's (0.05 %)."""
+    scheduled = []
+    for latency in (0.0, 2.5e-4, 5e-4):
+        law, state = _sampled_law(arm_plant, latency)
+        numbers = law.numbers_at(state, 5.0, 1e6)
+        gamma = numbers["schedule_target"] * 1e-5
+        loop = SampledContactLoop(
+            numbers["apparent_mass"],
+            1200.0,
+            170.0 + numbers["injected_damping"],
+            0.1,
+            FILTER,
+            1200.0,
+            1e-3,
+        )
+        assert numbers["schedule_target"] < 1.0
+        assert spectral_radius(loop.matrix(0.99 * 3 * gamma, 1e6, latency)) < 1.0
+        assert spectral_radius(loop.matrix(1.01 * 3 * gamma, 1e6, latency)) > 1.0
+        scheduled.append(gamma)
+    assert scheduled[0] > scheduled[1] > scheduled[2]
+
+
 # --- the layer in the loop --------------------------------------------------------------
 
 FR, FMAX = 5.0, 10.0
