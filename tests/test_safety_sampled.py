@@ -158,8 +158,8 @@ def test_a_fast_tick_without_latency_is_the_continuous_loop(stiffness):
 
 def test_latency_lowers_the_critical_gamma_at_1_khz():
     """At h = 1 ms on a 1e6 N/m wall: no latency, 0.25 ms and 0.5 ms. Each step of latency
-    lowers Gamma*, and all lie far below the continuous loop's 9.9e-5 (the issue's
-    figure, the Routh-Hurwitz bound here) that the continuous layer scheduled from."""
+    lowers Gamma*, and all lie far below the continuous loop's 9.9e-5 (the
+    Routh-Hurwitz bound) that the continuous layer scheduled from."""
     values = [_loop(1e-3).critical_gamma(1e6, latency) for latency in (0.0, 2.5e-4, 5e-4)]
     assert values[0] > values[1] > values[2]
     assert values[0] < 0.1 * 9.9e-5
