@@ -90,8 +90,8 @@ states advanced at each tick, y by h dy/dt and s exactly, s + (1 - exp(-h / tau_
 the tick the PID reads it, as one controller computes both in one tick. Gamma* is then the
 sampled loop's with the reading ``latency`` L late (systems/sampled_loop.py: the
 spectral radius of the reduced loop over one tick, the delay as states), in place of the
-continuous Routh-Hurwitz bound, which at h = 1 ms is 17 times too high on a 1e6 N/m wall
-(docs/safety.md, section 8).
+continuous Routh-Hurwitz bound, which at h = 1 ms is 17 to 30 times too high on a 1e6 N/m
+wall (L from 0 to 0.5 ms; docs/safety.md, section 8).
 
 For AutoDiffXd (Linearize), the schedule's inputs that are not the loop's (m, c, v_max,
 v_adv, the branch of each min) are taken at their values: at an equilibrium they are
@@ -260,11 +260,11 @@ def SafeAdmittance_(T):
             self._tau_schedule = float(schedule_time_constant)
             self._period = float(period)
             self._latency = float(latency)
-            # ds/dt = (s* - s) times this: 1 / tau_g, or the exact step over h.
-            self._schedule_rate = (
-                -math.expm1(-self._period / self._tau_schedule) / self._period
+            # ds/dt = (s* - s) / this: tau_g, or h over the exact step's share.
+            self._schedule_time = (
+                self._period / -math.expm1(-self._period / self._tau_schedule)
                 if self._period > 0
-                else 1.0 / self._tau_schedule
+                else self._tau_schedule
             )
             self._axis = int(normal_axis)
             self._num_axes = int(num_axes)
@@ -466,7 +466,7 @@ def SafeAdmittance_(T):
             numbers = self._derived(jacobian, _value(estimate), _value(reference))
             numbers["in_contact"] = _value(force) >= self._contact_force
 
-            scale_rate = (numbers["schedule_target"] - scale) * self._schedule_rate
+            scale_rate = (numbers["schedule_target"] - scale) / self._schedule_time
             integral_gain = self._gamma * self._stiffness * scale  # Gamma_s K
             error = reference - force
             guard = 0.5 * (_value(reference) + self._max_force)
