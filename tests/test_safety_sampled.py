@@ -219,6 +219,26 @@ def test_the_schedule_lowers_gamma_with_latency(arm_plant):
     assert scheduled[0] > scheduled[1] > scheduled[2]
 
 
+def test_the_report_s_margins_at_the_1_khz_settings():
+    """`admittance stability safe_contact_1khz --set sensor.latency=0.0005` reads, on its
+    1e5 N/m wall, a Gamma* below the one without latency and far below the continuous
+    loop's; the scheduled Gamma keeps the margin of 3 (here the scenario's 1e-5, since
+    Gamma* / 3 is above it); the loop is stable there and tolerates more than the 0.5 ms
+    it has; on the stiffest walls the schedule lowers Gamma to Gamma* / 3."""
+    from admittance.diagrams.analysis.safety_margins import sampled_margins
+    from admittance.diagrams.scenario.files import load_scenario
+
+    margins = sampled_margins(load_scenario("safe_contact_1khz", ["sensor.latency=0.0005"]))
+    assert margins["critical_gamma"] < margins["critical_gamma_without_latency"]
+    assert margins["critical_gamma_without_latency"] < 0.1 * margins["critical_gamma_continuous"]
+    assert margins["scheduled_gamma"] == min(1e-5, margins["critical_gamma"] / 3.0)
+    assert margins["spectral_radius"] < 1.0
+    assert margins["tolerable_latency"] > 0.0005
+    for row in margins["table"]:
+        assert row["scheduled_gamma"] <= row["critical_gamma"] / 3.0 * (1 + 1e-12)
+        assert row["spectral_radius"] < 1.0
+
+
 # --- the layer in the loop --------------------------------------------------------------
 
 FR, FMAX = 5.0, 10.0
