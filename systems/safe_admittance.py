@@ -91,6 +91,15 @@ systems/optimal_admittance.py), without a hard clamp of the output: a clamp woul
 command to Xd and let it approach at the plan's speed. y + P passes max_push by at most
 10 ms times the law's rate (0.1 mm at v_adv = 11.5 mm/s). The limits above act after it.
 
+**A sampled controller** (``period`` h > 0, the PID's period too): y and s are discrete
+states advanced at each tick, y by h dy/dt and s exactly, s + (1 - exp(-h / tau_g)) (s* - s)
+(dGamma_s/dt above is that step over h), while Xr is computed from them and the inputs at
+the tick the PID reads it, as one controller computes both in one tick. Gamma* is then the
+sampled loop's with the reading ``latency`` L late (systems/sampled_loop.py: the
+spectral radius of the reduced loop over one tick, the delay as states), in place of the
+continuous Routh-Hurwitz bound, which at h = 1 ms is 17 to 30 times too high on a 1e6 N/m
+wall (L from 0 to 0.5 ms; docs/safety.md, section 8).
+
 For AutoDiffXd (Linearize), the schedule's inputs that are not the loop's (m, c, v_max,
 v_adv, the branch of each min) are taken at their values: at an equilibrium they are
 frozen, and y, s, E and x' carry the derivatives.
@@ -108,6 +117,7 @@ from pydrake.systems.scalar_conversion import TemplateSystem
 
 from admittance.systems import contact_model
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.sampled_loop import SampledContactLoop
 
 __all__ = ["SafeAdmittance", "SafeAdmittance_", "SafetyNumbers"]
 
@@ -177,6 +187,8 @@ def SafeAdmittance_(T):
             detection_delay: float,
             schedule_time_constant: float = 0.005,
             payload_mass: float = 0.0,
+            period: float = 0.0,
+            latency: float = 0.0,
             normal_axis: int = 0,
             num_axes: int = 3,
             backoff_stiffness: float = math.inf,
@@ -201,6 +213,8 @@ def SafeAdmittance_(T):
                 schedule_time_constant: tau_g, s.
                 payload_mass: m_p, an unmodelled payload or tool at the fingertip, kg
                     (>= 0): added to the plant's M(q) as a point mass there.
+                period: h, the controller's period, s (0 = the continuous law).
+                latency: L, how late the reading reaches the law, s (used with h > 0).
                 normal_axis: the wall normal's index in X.
                 num_axes: size of Xr.
                 backoff_stiffness: above this estimate (a wall reported stiffer than
@@ -230,6 +244,8 @@ def SafeAdmittance_(T):
                 ("pid_kd", pid_kd),
                 ("filter_time_constant", filter_time_constant),
                 ("payload_mass", payload_mass),
+                ("period", period),
+                ("latency", latency),
             ):
                 if not (math.isfinite(value) and value >= 0):
                     raise ValueError(f"{name} must be finite and >= 0, got {value}")
@@ -241,6 +257,8 @@ def SafeAdmittance_(T):
                 pid_kd=float(pid_kd),
                 filter_time_constant=float(filter_time_constant),
                 payload_mass=float(payload_mass),
+                period=float(period),
+                latency=float(latency),
                 normal_axis=int(normal_axis),
                 num_axes=int(num_axes),
                 backoff_stiffness=float(backoff_stiffness),
@@ -262,6 +280,14 @@ def SafeAdmittance_(T):
             self._contact_force = float(contact_force)
             self._detection_delay = float(detection_delay)
             self._tau_schedule = float(schedule_time_constant)
+            self._period = float(period)
+            self._latency = float(latency)
+            # ds/dt = (s* - s) / this: tau_g, or h over the exact step's share.
+            self._schedule_time = (
+                self._period / -math.expm1(-self._period / self._tau_schedule)
+                if self._period > 0
+                else self._tau_schedule
+            )
             self._axis = int(normal_axis)
             self._num_axes = int(num_axes)
             self._kinematics = PlanarFrameKinematics(plant, frame_name)
@@ -277,11 +303,19 @@ def SafeAdmittance_(T):
             self.sensor_fault_input = self.DeclareVectorInputPort("sensor_fault", 1)
             self.collision_input = self.DeclareVectorInputPort("collision", 1)
             self.wall_approach_speed_input = self.DeclareVectorInputPort("wall_approach_speed", 1)
-            self.DeclareContinuousState(BasicVector_[T]([0.0, 1.0]))
+            if self._period > 0:
+                self.DeclareDiscreteState(BasicVector_[T]([0.0, 1.0]))
+                self.DeclarePeriodicDiscreteUpdateEvent(
+                    period_sec=self._period, offset_sec=0.0, update=self._DiscreteUpdate
+                )
+                state_ticket = self.xd_ticket()
+            else:
+                self.DeclareContinuousState(BasicVector_[T]([0.0, 1.0]))
+                state_ticket = self.xc_ticket()
             self._law_cache = self.DeclareCacheEntry(
                 description="reference offset and state rates",
                 value_producer=ValueProducer(allocate=Value[object]().Clone, calc=self._CalcLaw),
-                prerequisites_of_calc={self.xc_ticket(), self.all_input_ports_ticket()},
+                prerequisites_of_calc={state_ticket, self.all_input_ports_ticket()},
             )
             self.reference_offset_output = self.DeclareVectorOutputPort(
                 "reference_offset",
@@ -292,10 +326,8 @@ def SafeAdmittance_(T):
             self.gain_scale_output = self.DeclareVectorOutputPort(
                 "gain_scale",
                 1,
-                lambda context, output: output.SetFromVector(
-                    [context.get_continuous_state_vector()[1]]
-                ),
-                prerequisites_of_calc={self.xc_ticket()},
+                lambda context, output: output.SetFromVector([self._state(context)[1]]),
+                prerequisites_of_calc={state_ticket},
             )
 
         def _construct_copy(self, other, converter=None) -> None:
@@ -318,11 +350,15 @@ def SafeAdmittance_(T):
             """The arm's plant the layer takes M(q) and J(q) from."""
             return self._plant
 
-        def numbers_at(self, state, force_reference: float) -> SafetyNumbers:
+        def numbers_at(
+            self, state, force_reference: float, stiffness_estimate: float | None = None
+        ) -> SafetyNumbers:
             """m, m_p, c, v_max and v_adv at the plant state `state` (q, v), with the
-            schedule at the prior Ke_max: the bounds a logged sample was held to."""
+            schedule at `stiffness_estimate` (the prior Ke_max by default: the bounds a
+            logged sample was held to)."""
             self._kinematics.set_state(state)
-            return self._derived(self._kinematics.jacobian(), self._max_stiffness, force_reference)
+            estimate = self._max_stiffness if stiffness_estimate is None else stiffness_estimate
+            return self._derived(self._kinematics.jacobian(), estimate, force_reference)
 
         def _derived(self, jacobian, stiffness_estimate: float, force_reference: float):
             """The schedule's numbers (values only) from J and M(q) at the state the
@@ -358,15 +394,29 @@ def SafeAdmittance_(T):
                 approach_speed, advance_speed = _backed_off(
                     approach_speed, advance_speed, self._max_force, force_reference
                 )
-            critical = contact_model.critical_gamma(
-                stiffness_estimate,
-                mass=mass,
-                kp=self._kp,
-                kd=total_damping,
-                alpha=self._alpha,
-                filter_time_constant=self._tau_filter,
-                admittance_stiffness=self._stiffness,
-            )
+            if self._period > 0:
+                loop = SampledContactLoop(
+                    mass,
+                    self._kp,
+                    total_damping,
+                    self._alpha,
+                    self._tau_filter,
+                    self._stiffness,
+                    self._period,
+                )
+                critical = loop.rounded().critical_gamma(
+                    float(f"{stiffness_estimate:.2e}"), self._latency
+                )
+            else:
+                critical = contact_model.critical_gamma(
+                    stiffness_estimate,
+                    mass=mass,
+                    kp=self._kp,
+                    kd=total_damping,
+                    alpha=self._alpha,
+                    filter_time_constant=self._tau_filter,
+                    admittance_stiffness=self._stiffness,
+                )
             return SafetyNumbers(
                 apparent_mass=mass,
                 payload_mass=self._payload,
@@ -409,13 +459,24 @@ def SafeAdmittance_(T):
             self._kinematics.set_state(state)
             numbers = self._derived(self._kinematics.jacobian(), estimate, reference)
             scale = numbers["schedule_target"]
-            context.SetContinuousState([0.0, scale])
+            self._set_state(context, [0.0, scale])
             proportional = self._law_cache.Eval(context)[3]  # Gamma_s K alpha E_u
-            context.SetContinuousState([offset - _value(proportional), scale])
+            self._set_state(context, [offset - _value(proportional), scale])
+
+        def _state(self, context):
+            if self._period > 0:
+                return context.get_discrete_state_vector().value()
+            return context.get_continuous_state_vector().CopyToVector()
+
+        def _set_state(self, context, values) -> None:
+            if self._period > 0:
+                context.SetDiscreteState(values)
+            else:
+                context.SetContinuousState(values)
 
         # --- the law ------------------------------------------------------------------
         def _CalcLaw(self, context, value) -> None:
-            y, scale = context.get_continuous_state_vector().CopyToVector()
+            y, scale = self._state(context)
             state = self.estimated_state_input.Eval(context)
             force = self.measured_force_input.Eval(context)[0]
             reference = self.desired_force_input.Eval(context)[0]
@@ -432,7 +493,7 @@ def SafeAdmittance_(T):
             numbers = self._derived(jacobian, _value(estimate), _value(reference))
             numbers["in_contact"] = _value(force) >= self._contact_force
 
-            scale_rate = (numbers["schedule_target"] - scale) / self._tau_schedule
+            scale_rate = (numbers["schedule_target"] - scale) / self._schedule_time
             integral_gain = self._gamma * self._stiffness * scale  # Gamma_s K
             error = reference - force
             guard = 0.5 * (_value(reference) + self._max_force)
@@ -492,7 +553,15 @@ def SafeAdmittance_(T):
             )[0]
             return rate - speed if speed > guaranteed else rate
 
+        def _DiscreteUpdate(self, context, discrete_state) -> None:
+            rates = self._law_cache.Eval(context)[1]
+            discrete_state.get_mutable_vector().SetFromVector(
+                self._state(context) + self._period * rates
+            )
+
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
+            if self._period > 0:
+                return  # no continuous state
             derivatives.get_mutable_vector().SetFromVector(self._law_cache.Eval(context)[1])
 
         def _CalcOutput(self, context, output) -> None:

@@ -199,7 +199,11 @@ def test_the_monte_carlo_keeps_every_guarantee(tmp_path):
         ),
         (
             ["safety.enabled=true", "admittance.max_force=10", "pid.period=0.001"],
-            "safety.enabled: must be used with the continuous controller",
+            "pid.period: must be equal to admittance.period with safety.enabled",
+        ),
+        (
+            ["safety.enabled=true", "admittance.max_force=10", "sensor.latency=0.001"],
+            "sensor.latency: must be 0 with safety.enabled and the continuous controller",
         ),
         (["safety.payload_mass=-0.1"], "safety.payload_mass: must be in [0, 10] kg, got -0.1"),
         (["safety.payload_mass=12"], "safety.payload_mass: must be in [0, 10] kg, got 12.0"),

@@ -47,6 +47,11 @@ def static_scenario(scenario: Scenario) -> Scenario:
         raise ScenarioError(
             "admittance.period, pid.period: the linearization needs the continuous loop (0)"
         )
+    if frozen.sensor.latency > 0:
+        raise ScenarioError(
+            "sensor.latency: the linearization needs the continuous loop (0); "
+            "analysis.sampled_loop models the delay"
+        )
     return frozen
 
 

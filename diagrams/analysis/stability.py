@@ -14,7 +14,8 @@ impedance model of eq. 5 and the arm, PID and sensor dynamics are ignored. Here:
   and reports where it grows;
 * `stability_map`, `critical_gamma` and `sampled_spectral_radius` map where the loop is
   stable over Gamma, Ke, alpha, the sensor filter's cut-off and the sampled block's period;
-  `simulate_near_critical` confirms a boundary point on the nonlinear diagram.
+  `simulate_near_critical` confirms a boundary point on the nonlinear diagram (the
+  sampled, delayed loop: diagrams/analysis/safety_margins.py).
 """
 
 from __future__ import annotations

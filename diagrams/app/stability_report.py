@@ -14,7 +14,15 @@ from admittance.diagrams.analysis.linearization import (
     FindContactEquilibrium,
     LinearizeAtEquilibrium,
 )
-from admittance.diagrams.analysis.safety_margins import edge_confirmations, unstable_points
+from admittance.diagrams.analysis.safety_margins import (
+    continuous_counterpart,
+    edge_confirmations,
+    is_sampled,
+    resolving_step,
+    sampled_margins,
+    sampled_stability_map,
+    unstable_points,
+)
 from admittance.diagrams.analysis.stability import (
     critical_gamma,
     linear_versus_nonlinear,
@@ -74,14 +82,22 @@ MAPS = {
         "Ke (N/m), safety layer off",
         {"safety.enabled": False},
     ),
+    # A sampled controller: the reduced loop in one tick with the latency (sampled_margins).
+    "gamma_vs_stiffness_sampled": (
+        "wall.stiffness",
+        "stiffness",
+        "Ke (N/m), sampled loop with its latency (reduced model)",
+        {},
+    ),
 }
+SAMPLED_MAP = "gamma_vs_stiffness_sampled"
 
 
 def _maps_of(scenario: Scenario) -> dict:
     """The maps that apply: the comparison only with the layer on, the sampled block's
     period only without it (the layer runs continuous)."""
     skip = "gamma_vs_period" if scenario.safety.enabled else "gamma_vs_stiffness_without_safety"
-    return {name: spec for name, spec in MAPS.items() if name != skip}
+    return {name: spec for name, spec in MAPS.items() if name not in (skip, SAMPLED_MAP)}
 
 
 @dataclass
@@ -111,13 +127,23 @@ def analyse(
         progress: called with a short description as each stage starts.
     """
     axes = axes or MapAxes()
+    summary: dict = {"scenario": scenario.name}
+    run_scenario_as_given = scenario
+    if is_sampled(scenario):
+        # The loop that runs is sampled: its margins from the discrete-time reduced model;
+        # Linearize reads the continuous loop under it (same gains, no tick, no latency).
+        progress("the sampled loop with its latency: critical Gamma and tolerable latency")
+        summary["sampled"] = sampled_margins(scenario)
+        scenario = continuous_counterpart(scenario)
     progress("eq. 13 symbolically; the contact equilibrium and the linearized loop")
-    summary: dict = {"scenario": scenario.name, "eq13": symbolic_eq13()}
+    summary["eq13"] = symbolic_eq13()
     equilibrium = FindContactEquilibrium(scenario)
     A = LinearizeAtEquilibrium(equilibrium).A()
     summary["equilibrium_residual"] = equilibrium.residual
     summary["num_states"] = int(A.shape[0])
     summary["modes"] = modal_summary(A)
+    summary["resolving_step"] = resolving_step(A)
+    summary["resolving_step"]["max_step_used"] = scenario.simulator.max_step_size
     certificate = lyapunov_certificate(A)
     certificate.pop("P", None)
     summary["lyapunov"] = certificate
@@ -148,6 +174,8 @@ def analyse(
         progress(f"stability map {index} of {len(applicable)}: {name} ({size} linearizations)")
         base = with_values(scenario, overrides) if overrides else scenario
         maps[name] = stability_map(base, "admittance.gamma", axes.gamma, key, getattr(axes, axis))
+    if "sampled" in summary:
+        maps[SAMPLED_MAP] = sampled_stability_map(run_scenario_as_given, axes.gamma, axes.stiffness)
     if scenario.safety.enabled:
         progress("the safety layer: nonlinear runs at the corners of its map over Ke")
         edges = (float(axes.stiffness[0]), float(axes.stiffness[-1]))
@@ -165,7 +193,7 @@ def analyse(
     trajectory = None
     if with_trajectory:
         progress(f"V(t) along a simulated run of {number(scenario.duration, ' s')}")
-        result = run_scenario(scenario)
+        result = run_scenario(run_scenario_as_given)
         trajectory = lyapunov_along_trajectory(result)
         summary["lyapunov_along_trajectory"] = {
             "monotone_after_contact": trajectory["monotone_after_contact"],
@@ -173,7 +201,39 @@ def analyse(
             "growing_intervals": trajectory["growing_intervals"][:50],
             "growing_intervals_total": len(trajectory["growing_intervals"]),
         }
-    return StabilityReport(scenario, summary, maps, axes, trajectory, step)
+    return StabilityReport(run_scenario_as_given, summary, maps, axes, trajectory, step)
+
+
+def _latency_text(latency) -> str:
+    return "> 100 ms" if latency is None else number(1e3 * latency, " ms", digits=3)
+
+
+def _sampled_lines(sampled: dict) -> list[str]:
+    """The sampled loop's margins (safety_margins.sampled_margins) as report lines."""
+    lines = [
+        f"The loop that runs: PID and law in one tick of {number(1e3 * sampled['period'])} ms, "
+        f"the reading {number(1e3 * sampled['latency'])} ms late (reduced model: m = "
+        f"{number(sampled['apparent_mass'], ' kg', digits=4)}, Kd + c = "
+        f"{number(sampled['damping'], ' N s/m', digits=4)}):",
+        f"  on the wall (Ke {number(sampled['stiffness'], ' N/m')}): critical Gamma "
+        f"{number(sampled['critical_gamma'], digits=4)} with the latency, "
+        f"{number(sampled['critical_gamma_without_latency'], digits=4)} without it, "
+        f"{number(sampled['critical_gamma_continuous'], digits=4)} for the continuous loop",
+        f"  scheduled Gamma {number(sampled['scheduled_gamma'], digits=4)} (the scenario's "
+        f"{number(sampled['gamma'])}); spectral radius there "
+        f"{number(sampled['spectral_radius'], digits=5)}; tolerable latency at the scheduled "
+        f"gains {_latency_text(sampled['tolerable_latency'])}",
+        "  Ke (N/m)   critical Gamma   scheduled Gamma   tolerable latency",
+    ]
+    for row in sampled["table"]:
+        lines.append(
+            f"  {row['stiffness']:8.0e}   {row['critical_gamma']:14.4g}   "
+            f"{row['scheduled_gamma']:15.4g}   {_latency_text(row['tolerable_latency'])}"
+        )
+    return lines + [
+        "Below: the continuous loop under it (Linearize needs it; no tick, no latency).",
+        "",
+    ]
 
 
 def format_report(summary: dict) -> str:
@@ -183,6 +243,7 @@ def format_report(summary: dict) -> str:
     lines = [
         f"Stability of scenario {summary['scenario']}",
         "",
+        *(_sampled_lines(summary["sampled"]) if "sampled" in summary else []),
         "Eq. 13 (pydrake.symbolic, per axis):",
         f"  dI/dXr = -K (E + alpha dE/dt): {eq13['dI_dXr_equals_minus_K_weighted_error']}",
         "  corrected law dXr/dt = +Gamma K (E + alpha dE/dt) gives "
@@ -209,6 +270,14 @@ def format_report(summary: dict) -> str:
         )
     else:
         lines.append(f"Lyapunov: no positive definite P ({lyapunov.get('error', 'P not > 0')})")
+    resolution = summary["resolving_step"]
+    lines.append(
+        f"Fastest oscillatory mode {number(resolution['fastest_mode_hz'], ' Hz', digits=4)}: "
+        f"a nonlinear run shows it with a step of at most "
+        f"{number(1e3 * resolution['step'], ' ms', digits=3)} (10 per period); the runs "
+        f"below cap the step at {number(1e3 * resolution['max_step_used'], ' ms', digits=3)}"
+        + ("" if resolution["max_step_used"] <= resolution["step"] else " and cannot show it")
+    )
     comparison = summary["linear_versus_nonlinear"]
     lines.append(
         f"Linear vs nonlinear, Fr step of {comparison['step_N']} N: max difference "

@@ -12,6 +12,7 @@ reaches every robot.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from pydrake.common import RandomDistribution
@@ -20,9 +21,11 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import (
     Adder,
     ConstantVectorSource,
+    DiscreteTimeDelay,
     Gain,
     LogVectorOutput,
     RandomSource,
+    ZeroOrderHold,
 )
 
 from admittance.diagrams.robots.description import ForcePoint
@@ -41,11 +44,13 @@ __all__ = [
     "AddCommandedPosition",
     "AddForceController",
     "AddForceLoop",
+    "AddLatency",
     "AddLoggers",
     "AddPointKinematics",
     "AddPointPid",
     "AddSensorChain",
     "SensorReading",
+    "latency_period",
 ]
 
 
@@ -137,7 +142,7 @@ def _AddWrenchChain(
     )
     builder.Connect(noise_output, sensor.noise_input)
     sources = [] if source is None else [source]
-    return SensorReading(sensor, frame.force_output, sources, frame)
+    return SensorReading(sensor, AddLatency(builder, point, frame.force_output), sources, frame)
 
 
 def AddSensorChain(
@@ -148,7 +153,8 @@ def AddSensorChain(
     noise: bool = True,
     plant: MultibodyPlant | None = None,
 ) -> SensorReading:
-    """The point's force sensor on the true contact force, its faults and its noise.
+    """The point's force sensor on the true contact force, its faults, its noise and its
+    latency (:func:`AddLatency`).
 
     The ideal sensor is a wire: its reading is the contact force, with no system to
     evaluate. Without `noise` (an analysis diagram) the noise input is held at zero. The
@@ -183,7 +189,9 @@ def AddSensorChain(
         measured_force_output = fault.reported_force_output
     random_sources = []
     if system is None:
-        return SensorReading(system, measured_force_output, random_sources)
+        return SensorReading(
+            system, AddLatency(builder, point, measured_force_output), random_sources
+        )
     source, noise_output = _AddNoise(builder, point, 1, chain.noise_std, chain.noise_period, noise)
     if source is not None:
         random_sources.append(source)
@@ -195,7 +203,45 @@ def AddSensorChain(
     if chain.faults and fault.noise_input is not None:
         # A noisy fault keeps the same ADC noise the reading had.
         builder.Connect(noise_output, fault.noise_input)
-    return SensorReading(system, measured_force_output, random_sources)
+    return SensorReading(system, AddLatency(builder, point, measured_force_output), random_sources)
+
+
+def latency_period(point: ForcePoint) -> float:
+    """The period at which a delayed reading is sampled: the force law's when it is
+    sampled (the ADC runs with the controller), otherwise the ADC's noise period, s."""
+    return point.law.period if point.law.period > 0 else point.sensor.noise_period
+
+
+def AddLatency(builder: DiagramBuilder, point: ForcePoint, reading_output):
+    """The reading `latency` L late, as a controller sampled at the period h sees it.
+
+    With L = n h + r (0 <= r < h), a ZeroOrderHold of period h and offset h - r samples
+    the reading at t_k - r; n more periods come from a ZeroOrderHold at offset 0 (n = 1)
+    or a DiscreteTimeDelay of n - 1 steps (n >= 2: a discrete system read by another's
+    update at the same instant shows its value before the update, one period more).
+    A controller updated at t_k = k h then reads the reading of t_k - L exactly
+    (tests/test_safety_sampled.py); a continuous one reads that sample held over
+    [t_k, t_k+1). L = 0 adds nothing: the reading's port is returned as it is.
+    """
+    latency = point.sensor.latency
+    if latency <= 0.0:
+        return reading_output
+    period = latency_period(point)
+    periods = math.floor(latency / period + 1e-9)
+    remainder = latency - periods * period
+    stages = []
+    if remainder > 1e-9 * period:
+        stages.append(("latency_sample", ZeroOrderHold(period, 1, period - remainder)))
+    if periods == 1:
+        stages.append(("latency_hold", ZeroOrderHold(period, 1)))
+    elif periods >= 2:
+        stages.append(("latency_delay", DiscreteTimeDelay(period, periods - 1, 1)))
+    for role, system in stages:
+        builder.AddSystem(system)
+        system.set_name(point.system_name(role))
+        builder.Connect(reading_output, system.get_input_port())
+        reading_output = system.get_output_port()
+    return reading_output
 
 
 def AddPointPid(

@@ -240,6 +240,8 @@ def AddSafetyLayer(
             contact_force=contact,
             detection_delay=detector.detection_delay,
             payload_mass=safety.payload_mass,
+            period=admittance.period,
+            latency=scenario.sensor.latency,
             normal_axis=NORMAL_AXIS,
             num_axes=3,
             backoff_stiffness=STIFFER_FACTOR * safety.max_stiffness,

@@ -43,6 +43,8 @@ class SensorChain:
     noise_period: float = 0.005
     # Readout period of the sensor, s (0 = a continuous output).
     period: float = 0.0
+    # Latency of the reading, s (0 = none): each sample reaches the controller this late.
+    latency: float = 0.0
     # Loading-unloading band of the FlexiForce, a fraction of the force (0 = none).
     hysteresis: float = 0.0
     # Rise of the FlexiForce's reading per decade of time under load, a fraction (0 = none).
@@ -149,6 +151,7 @@ def sensor_chain(section: SensorSection, **robot_keys) -> SensorChain:
         kind=section.kind,
         filter_cutoff=section.filter_cutoff,
         noise_std=section.noise_std,
+        latency=section.latency,
         **robot_keys,
     )
 

@@ -236,6 +236,7 @@ GRASP_RANGES: dict[str, Range] = {
     "admittance.max_retract": Range("(0, 0.05]", "m"),
     "sensor.noise_std": Range("[0, 10]", "N"),
     "sensor.filter_cutoff": Range("(0, 1e6]", "Hz"),
+    "sensor.latency": RANGES["sensor.latency"],
     "disturbance.duration": Range("(0, 1000]", "s"),
     "disturbance.mass_scale": Range("(0, 10]"),
     "simulator.accuracy": RANGES["simulator.accuracy"],

@@ -54,6 +54,9 @@ class SensorSection:
     noise_std: float = 0.02
     # Cut-off of the analog low-pass filter after the op-amp, Hz.
     filter_cutoff: float = 5000.0
+    # Latency of the reading, s: each sample reaches the controller this long after it
+    # was taken (0 = the reading as it is, no sampling added; loop.point.AddSensorChain).
+    latency: float = 0.0
 
 
 @dataclass

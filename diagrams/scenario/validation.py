@@ -127,6 +127,8 @@ RANGES: dict[str, Range] = {
     "sensor.filter_cutoff": Range("(0, 1e6]", "Hz"),
     "sensor.hysteresis": Range("[0, 0.1]", "(fraction of the force)"),
     "sensor.drift": Range("[0, 0.1]", "(fraction per decade of time under load)"),
+    # From the sample to the controller: up to 20 ms (a slow fieldbus).
+    "sensor.latency": Range("[0, 0.02]", "s"),
     # Finer than 1e-8 the implicit integrator crawls (1e-10: ten times slower than 1e-8)
     # or gives up at the start.
     "simulator.accuracy": Range("[1e-8, 0.1]"),
@@ -419,10 +421,18 @@ def _check_safety(s: Scenario) -> None:
         s.admittance.max_force,
     )
     require(
-        s.admittance.period == 0 and s.pid.period == 0,
-        "safety.enabled",
-        "used with the continuous controller (admittance.period and pid.period 0)",
-        s.safety.enabled,
+        s.admittance.period == s.pid.period,
+        "pid.period",
+        "equal to admittance.period with safety.enabled (the layer and the PID run in one "
+        "tick: both continuous or both sampled)",
+        s.pid.period,
+    )
+    require(
+        s.sensor.latency == 0 or s.admittance.period > 0,
+        "sensor.latency",
+        "0 with safety.enabled and the continuous controller (the layer's margin for a "
+        "latency is the sampled loop's: set admittance.period and pid.period)",
+        s.sensor.latency,
     )
 
 
