@@ -298,3 +298,55 @@ def test_safe_contact_at_1_khz_with_latency(latency):
     assert metrics["peak_force"] <= FMAX
     assert metrics["contact_losses"] == 0
     assert metrics["steady_state_force_error"] <= 0.02 * FR
+
+
+# --- the sampled PID's damper ---------------------------------------------------------
+
+
+def test_the_sampled_damper_gain_of_a_sliding_mass_by_hand():
+    """A 2 kg block on a prismatic x joint: J M^-1 J^T = diag(1/m, 0, 0), so the gain is
+    h Kd_x / m = 1e-3 * 300 / 2 = 0.15 exactly (y and theta do not move)."""
+    from pydrake.multibody.plant import MultibodyPlant
+    from pydrake.multibody.tree import PrismaticJoint, SpatialInertia, UnitInertia
+
+    from admittance.diagrams.loop.safety_layer import sampled_damper_gain
+
+    plant = MultibodyPlant(0.0)
+    body = plant.AddRigidBody(
+        "block", SpatialInertia(2.0, np.zeros(3), UnitInertia.SolidSphere(0.05))
+    )
+    plant.AddJoint(
+        PrismaticJoint("slide", plant.world_frame(), body.body_frame(), [1.0, 0.0, 0.0])
+    )
+    plant.Finalize()
+    gain = sampled_damper_gain(plant, "block", [0.3, 0.0], [300.0, 50.0, 5.0], 1e-3)
+    assert gain == pytest.approx(0.15, rel=1e-12)
+
+
+def test_safe_contact_with_a_sampled_pid_too_damped_for_its_arm_is_refused(tmp_path, capsys):
+    """safe_contact's Kd_theta = 5 on the rigid arm's light last link, held over 1 ms: h
+    max eig(J M^-1 J^T Kd) is about 16 (the run bounces at 73 N with 86 contact losses
+    when let through); the layer cannot bound that, so the run is refused in one line,
+    naming the keys, and nothing is written. safe_contact_1khz (the motors' inertia,
+    Kd_theta = 2) passes the same check: its runs are in section 8."""
+    out = tmp_path / "r"
+    status = main(
+        [
+            "simulate",
+            "safe_contact",
+            "--set",
+            "admittance.period=0.001",
+            "--set",
+            "pid.period=0.001",
+            "--set",
+            "duration=0.05",
+            "--out",
+            str(out),
+        ]
+    )
+    error = capsys.readouterr().err.strip()
+    assert status == 2
+    assert len(error.splitlines()) == 1
+    assert "pid.kd, pid.period" in error and "arm.reflected_inertia=true" in error
+    assert not out.exists()
+    assert main(["simulate", "safe_contact_1khz", "--set", "duration=0.05", "--out", str(out)]) == 0

@@ -42,6 +42,7 @@ __all__ = [
     "fault_detection",
     "first_contact_approach",
     "reach_limit",
+    "sampled_damper_gain",
     "safety_columns",
     "stiffer_than_stated",
     "safety_metrics",
@@ -70,6 +71,9 @@ STOP_HOLD = 0.05
 # factor times Ke_max. It starts at the prior Ke_max and rises only on a stiffer secant:
 # 1.07e6 N/m at most on the 1e6 N/m walls measured; 2 leaves room for the secant's noise.
 STIFFER_FACTOR = 2.0
+# A sampled PID's damper alone is stable while h max eig(J M^-1 J^T Kd) stays below this
+# (see sampled_damper_gain).
+SAMPLED_DAMPER_LIMIT = 2.0
 
 
 def expected_noise(scenario: Scenario) -> float:
@@ -96,6 +100,11 @@ class SafetyLayer:
     observer: ContactForceObserver
     # None in an analysis diagram (sampled: an equilibrium has no moving wall).
     wall_monitor: WallMotionMonitor | None = None
+    # The sampled PID's period (0 = continuous), its Kd on X and the controlled frame,
+    # for the check of its damper at the run's start (sampled_damper_gain).
+    pid_period: float = 0.0
+    pid_kd: tuple[float, ...] = ()
+    frame: str = ""
 
     # The force controller's ports (diagrams/loop/point.py): the reading goes to
     # the detector, Fr and Xd to the law, Xr comes out of the law.
@@ -135,6 +144,7 @@ class SafetyLayer:
         detector_context = self.detector.GetMyMutableContextFromRoot(root_context)
         reading = self.detector.measured_force_input.Eval(detector_context)[0]
         self.detector.set_reading(detector_context, float(reading))
+        self._check_sampled_damper(root_context)
         try:
             self.law.start_at_tip(self.law.GetMyMutableContextFromRoot(root_context))
         except ValueError as error:
@@ -142,6 +152,23 @@ class SafetyLayer:
                 f"arm.initial_position, admittance.max_push: {error} "
                 "(with safety.enabled the reference starts at the tip)"
             ) from None
+
+    def _check_sampled_damper(self, root_context: Context) -> None:
+        """Refuses a sampled PID whose damper alone is unstable on the arm at the start:
+        the layer's bounds assume a stable inner loop, which it cannot restore."""
+        if self.pid_period <= 0.0:
+            return
+        law_context = self.law.GetMyContextFromRoot(root_context)
+        state = self.law.estimated_state_input.Eval(law_context)
+        gain = sampled_damper_gain(self.law.plant, self.frame, state, self.pid_kd, self.pid_period)
+        if gain >= SAMPLED_DAMPER_LIMIT:
+            raise ScenarioError(
+                f"pid.kd, pid.period: the sampled PID's damping is unstable on this arm: "
+                f"h max eig(J M^-1 J^T Kd) = {gain:.3g} at the start, must be below "
+                f"{SAMPLED_DAMPER_LIMIT:g} (docs/safety.md, section 8); with safety.enabled the "
+                "layer cannot bound the force: lower pid.kd, shorten pid.period, or model the "
+                "motors' inertia (arm.reflected_inertia=true), as safe_contact_1khz does"
+            )
 
     def set_equilibrium(self, root_context: Context, offset: float, external_torque) -> None:
         """At an analysis equilibrium: Xr = `offset`, the observer at `external_torque`."""
@@ -271,8 +298,32 @@ def AddSafetyLayer(
         else _AddWallMotionMonitor(builder, scenario, plant, law, detector, estimator)
     )
     return SafetyLayer(
-        law=law, detector=detector, estimator=estimator, observer=observer, wall_monitor=monitor
+        law=law,
+        detector=detector,
+        estimator=estimator,
+        observer=observer,
+        wall_monitor=monitor,
+        pid_period=pid_config.period,
+        pid_kd=tuple(pid_config.kd),
+        frame=frame,
     )
+
+
+def sampled_damper_gain(plant, frame_name: str, state, kd, period: float) -> float:
+    """h max eig(J M^-1 J^T Kd) at `state` (x, y, theta of `frame_name` in world).
+
+    The sampled PID holds its damping force -Kd dX/dt over each period h. On the arm's
+    task-space inertia Lambda = (J M^-1 J^T)^-1 that force alone steps the task velocity
+    by (I - h Lambda^-1 Kd) per period, whose eigenvalues 1 - h lambda_i lie inside the
+    unit circle only while h lambda_i < 2. It is a necessary condition: the stiffness and
+    the contact take some of that room.
+    """
+    kinematics = PlanarFrameKinematics(plant, frame_name)
+    kinematics.set_state(np.asarray(state, dtype=float))
+    jacobian = np.asarray(kinematics.jacobian(), dtype=float)
+    mass = plant.CalcMassMatrix(kinematics.context)
+    mobility = jacobian @ np.linalg.solve(mass, jacobian.T)
+    return float(period * np.max(np.linalg.eigvals(mobility @ np.diag(kd)).real))
 
 
 def _AddWallMotionMonitor(builder, scenario, plant, law, detector, estimator) -> WallMotionMonitor:
