@@ -183,3 +183,24 @@ def test_ctrl_c_exits_130_with_one_line_and_nothing_half_written(tmp_path, argum
     # Nothing staged is left next to the result, and no worker is left running.
     assert not out.parent.exists() or [p.name for p in out.parent.iterdir()] in ([], ["run"])
     assert _group_ends(process.pid) == []
+
+
+def test_a_ctrl_c_that_an_extension_turns_into_its_own_error_still_exits_130(monkeypatch, capsys):
+    """numpy checks for signals while it builds an array for a pybind11 call: a Ctrl-C
+    there reaches the command line as that call's TypeError ("incompatible function
+    arguments"), not as KeyboardInterrupt. It is still an interruption: 130, one line."""
+    from admittance.diagrams.app import cli
+
+    def handler(args, progress):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5.0)  # the signal's handler runs here
+        except KeyboardInterrupt:
+            raise TypeError("SetFromVector(): incompatible function arguments") from None
+
+    monkeypatch.setitem(cli.HANDLERS, "simulate", handler)
+    try:
+        assert cli.main(["simulate", "paper_stiffness_step"]) == 130
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    assert capsys.readouterr().err.strip() == "admittance: interrupted; no result was written"

@@ -29,7 +29,7 @@ import os
 import sys
 from pathlib import Path
 
-from admittance.diagrams.app.interrupts import sigint_held_back
+from admittance.diagrams.app.interrupts import record_sigint, sigint_held_back, sigint_received
 from admittance.diagrams.app.parser import (
     EXIT_INPUT_ERROR,
     EXIT_INTERRUPTED,
@@ -450,11 +450,16 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Runs the command line; returns the exit status (0, 1, 2 or 130)."""
+    record_sigint()
     try:
         args = build_parser(HANDLERS).parse_args(argv)
         return _run(args, sys.argv[1:] if argv is None else list(argv))
     except KeyboardInterrupt:
         return _interrupted()
+    except Exception:
+        if sigint_received():  # a Ctrl-C that an extension's call turned into its own error
+            return _interrupted()
+        raise
     except BrokenPipeError:  # the reader went away (e.g. `| head`): not an error of the run
         sys.stdout = open(os.devnull, "w")  # noqa: SIM115 (so the exit flush stays quiet)
         return 0

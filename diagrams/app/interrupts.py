@@ -21,7 +21,34 @@ import signal
 import threading
 from collections.abc import Iterator
 
-__all__ = ["sigint_held_back"]
+__all__ = ["record_sigint", "sigint_held_back", "sigint_received"]
+
+
+# Whether a SIGINT arrived since record_sigint() was last called.
+_received = threading.Event()
+
+
+def _record_and_raise(signum, frame):
+    _received.set()
+    raise KeyboardInterrupt
+
+
+def record_sigint() -> None:
+    """Delivers SIGINT as KeyboardInterrupt, as Python does by default, and remembers
+    that it came (a no-op outside the main thread).
+
+    A KeyboardInterrupt raised while an extension converts its arguments (numpy checks
+    for signals while it builds an array for a pybind11 call) reaches the caller as that
+    call's TypeError instead: the command line then asks :func:`sigint_received`.
+    """
+    _received.clear()
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, _record_and_raise)
+
+
+def sigint_received() -> bool:
+    """True when a SIGINT arrived since :func:`record_sigint`."""
+    return _received.is_set()
 
 
 @contextlib.contextmanager
