@@ -128,6 +128,32 @@ def test_parameters_round_trip_and_refuse_bad_values_in_one_line():
         assert "\n" not in str(error.value)
 
 
+def test_a_spatial_scenario_file_with_a_hardware_section_and_its_bad_keys(tmp_path):
+    """The scenario's keys go to the spatial scenario, the hardware section's to the
+    hardware; --set reaches either; a bad key is refused in one line naming it."""
+    path = tmp_path / "press.yaml"
+    path.write_text(
+        "kind: spatial\nduration: 5\nsurface:\n  height_error: 0.002\n"
+        "hardware:\n  command_wait: 0\n"
+    )
+    config = load_hardware_config(path, ["rate=500", "station_timeout=0.3"])
+    scenario = spatial_scenario(config)
+    assert (config.command_wait, config.station_timeout, config.rate) == (0, 0.3, 500)
+    assert scenario.surface.height_error == 0.002 and scenario.time_step == 0.002
+    assert config.duration == 5 and config.name == "press"
+    for bad, key in (
+        (["mode=velocity"], "mode"),
+        (["surface.height_error=0.5"], "surface.height_error"),
+        (["duration=-1"], "duration"),
+    ):
+        with pytest.raises(ValueError, match=f"^{key}: ") as error:
+            load_hardware_config(path, bad)
+        assert "\n" not in str(error.value)
+    path.write_text("kind: spatial\nhardware:\n  comand_wait: 0\n")
+    with pytest.raises(ValueError, match="^hardware.comand_wait: unknown key"):
+        load_hardware_config(path)
+
+
 def test_only_urls_that_keep_packets_on_the_host_are_accepted():
     assert check_lcm_url("memq://") == "memq://"
     assert check_lcm_url("udpm://239.255.76.67:7667?ttl=0")
