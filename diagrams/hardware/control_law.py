@@ -15,10 +15,10 @@ Between the messages and the systems:
 * the force is the wrist wrench of ``lcmt_force_torque`` (in the sensor frame, the tool's
   frame at ``tool_weld``) read along E's z, into the table: F = -(R_ES f_S) . e_z;
 * Fr(t) is the scenario's ramp ``spatial_force_reference`` scaled to the Fr in force;
-* each status is one sample of both sampled systems, in the order of the simulated loop:
-  both updates are computed from the state before either (the PID's Xc = Xd + Xr reads the
-  offset the law held since the previous sample), then both applied, then the PID's held
-  torque is the command.
+* each status is one sample of both sampled systems (n samples after a gap of n periods),
+  in the order of the simulated loop: both updates are computed from the state before
+  either (the PID's Xc = Xd + Xr reads the offset the law held since the previous sample),
+  then both applied, then the PID's held torque is the command.
 
 A parameter message changes Fr (an input), or Gamma, alpha, Fmax: the law is rebuilt with
 the new values and its state carried over, its integral z rescaled so that Gamma K z, the
