@@ -177,9 +177,9 @@ def test_two_processes_press_the_table_within_5_percent_of_fr(tmp_path):
 @needs_namespace
 @pytest.mark.slow
 def test_the_controller_killed_mid_press_leaves_the_arm_held_under_2_fr(tmp_path):
-    """SIGKILL once the controller's clock reaches 2 s (in contact since about 0.7 s): the
-    station holds the arm from its watchdog's timeout on, and the force after the loss
-    stays under 2 Fr."""
+    """SIGKILL once the controller's clock reaches 2 s (in contact since 0.92 s, the force
+    near 9.6 N at the end of its ramp): the station holds the arm from its watchdog's
+    timeout on, and the force after the loss stays under 2 Fr."""
     result = _pair(
         tmp_path,
         ["--set", "duration=6"],

@@ -7,6 +7,5 @@ from admittance.diagrams.hardware.controller import *  # noqa: F403
 from admittance.diagrams.hardware.interface import *  # noqa: F403
 from admittance.diagrams.hardware.messages import *  # noqa: F403
 from admittance.diagrams.hardware.pacer import *  # noqa: F403
-from admittance.diagrams.hardware.panda import *  # noqa: F403
 from admittance.diagrams.hardware.station import *  # noqa: F403
 from admittance.diagrams.hardware.timing import *  # noqa: F403

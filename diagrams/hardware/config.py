@@ -1,10 +1,14 @@
-"""The hardware split's settings: the station (the robot, or its simulation) and the
-controller process, read from a YAML file or the built-in ``panda_surface_press`` defaults.
+"""The hardware split's settings: a spatial scenario (the robot, its tool, the table, the
+plan and the gains, ``kind: spatial``, e.g. the built-in ``panda_surface_press``) and the
+keys that are the hardware's own (the command interface, the watchdogs, the pacing), in a
+``hardware`` section of the scenario file.
 
-Until the spatial scenario kind lands in ``admittance.diagrams.scenario``, the station and
-the controller read this small schema of their own: what a spatial scenario must give them
-(docs/hardware.md, "What the spatial scenario needs"). Every key has a default; a YAML file
-names only what differs, and ``--set key=value`` overrides one key.
+``--set key=value`` overrides one key: a hardware key by its name (``command_wait=0``), any
+other the scenario's (``surface.height_error=0.002``); ``rate=R`` is the scenario's
+``time_step=1/R`` (the robot's status rate is the loop's period). ``duration`` is the run's
+length (the scenario's by default): a run may be shorter than the scenario's plan (a test
+of the station alone) or longer (a controller started before its station); the plan holds
+its last point after its end.
 """
 
 # No "from __future__ import annotations": yaml_load_typed reads the real field types.
@@ -15,102 +19,86 @@ from pathlib import Path
 
 import yaml
 
-from admittance.diagrams.scenario.schema import ScenarioError, load_typed
+from admittance.diagrams.scenario.files import load_scenario
+from admittance.diagrams.scenario.schema import ScenarioError, load_typed, parse_value
+from admittance.diagrams.scenario.spatial_arm import SpatialScenario, load_spatial_scenario
 
-__all__ = ["BUILTIN_HARDWARE_SCENARIOS", "HardwareConfig", "load_hardware_config"]
+__all__ = [
+    "BUILTIN_HARDWARE_SCENARIOS",
+    "HardwareConfig",
+    "load_hardware_config",
+    "spatial_scenario",
+]
 
-# The scenarios the hardware split knows by name (the defaults below).
+# The built-in spatial scenarios the hardware split runs by name.
 BUILTIN_HARDWARE_SCENARIOS = ("panda_surface_press",)
 CONTROL_MODES = ("torque", "position")
 
 
 @dataclasses.dataclass
 class HardwareConfig:
-    # Name of the run (the result folder's default name).
-    name: str = "panda_surface_press"
-    # Length of the run, s (the station's simulated time; the controller stops with it).
-    duration: float = 4.0
     # The station's command interface: torque (commanded torques plus the station's own
     # gravity compensation) or position (the station's joint PD tracks commanded positions).
     mode: str = "torque"
-    # The robot's status and command rate, Hz (the Panda's and the iiwa's: 1 kHz).
-    rate: float = 1000.0
     # Real-time pacing of the station (Simulator target rate; 0 = as fast as it can).
     realtime_rate: float = 1.0
     # Wall time the station gives the controller to answer each status, s (the robot gives
     # it one cycle, 0.001; a simulated station on a loaded machine more, so that the plant
     # sees a one-period delay); a later command is counted late, the station goes on.
     command_wait: float = 0.02
-    # Height of the table's top above the robot's base, m.
-    table_height: float = 0.335
-    # Point-contact stiffness of the tool tip on the table, N/m.
-    contact_stiffness: float = 2.0e4
-    # Hunt-Crossley dissipation of that contact, s/m.
-    contact_dissipation: float = 20.0
     # The station's command watchdog: no fresh command for this long holds the arm, s.
     command_timeout: float = 0.02
     # Joint stiffness of the station's PD (position mode and hold), N m/rad.
     joint_stiffness: float = 600.0
     # Joint damping of the station's PD, N m s/rad.
     joint_damping: float = 40.0
-    # Desired normal force on the table, N (the paper's Fr).
-    force_reference: float = 10.0
-    # Gradient-flow gain of the law (eq. 10), m/(N^2 s) per unit stiffness.
-    gamma: float = 3.0e-6
-    # Weight of dE/dt in the law's cost, s.
-    alpha: float = 0.02
-    # Force bound Fmax, N (inf: no bound).
-    max_force: float = 20.0
+    # Force bound Fmax of the law, N (inf: none, as the scenario's law).
+    max_force: float = math.inf
     # Exterior-penalty gain mu above the guard level (Fr + Fmax) / 2.
     force_bound_gain: float = 4.0
-    # Furthest the law's offset may push past the plan, m.
-    max_push: float = 0.08
-    # Cartesian PD stiffness (translation, N/m; rotation, N m/rad).
-    translational_stiffness: float = 1000.0
-    rotational_stiffness: float = 20.0
-    # Cartesian PD damping (translation, N s/m; rotation, N m s/rad). The rotation's damping
-    # reaches the wrist's last joint (0.0067 kg m^2) almost alone: with the command one
-    # period late it needs d T / M_77 below about 1 (1.5 N m s/rad holds down to 250 Hz).
-    translational_damping: float = 80.0
-    rotational_damping: float = 1.5
-    # Null-space posture stiffness and damping of the redundant joint, N m/rad, N m s/rad.
-    posture_stiffness: float = 5.0
-    posture_damping: float = 2.0
     # The controller's watchdog: periods without a status before it commands a hold.
     status_timeout_periods: int = 10
     # Seconds without a status after which the controller decides the station is gone.
     station_timeout: float = 0.5
     # A wrench older than this (by its timestamp against the status clock) is stale, s.
     wrench_timeout: float = 0.01
+    # --- from the scenario (set by load_hardware_config; not keys of the section) ---
+    # The scenario: a built-in name or a YAML file, and the overrides given to it.
+    scenario: str = "panda_surface_press"
+    scenario_overrides: list[str] = dataclasses.field(default_factory=list)
+    # Name of the run (the result folder's default name).
+    name: str = "panda_surface_press"
+    # Length of the run, s (the station's simulated time; the controller stops with it).
+    duration: float = 6.0
+    # The robot's status and command rate, Hz: 1 / the scenario's time_step.
+    rate: float = 1000.0
+    # Fr, N.
+    force_reference: float = 10.0
 
 
-_POSITIVE = (
-    "duration",
-    "rate",
-    "contact_stiffness",
+_SECTION_KEYS = (
+    "mode",
+    "realtime_rate",
+    "command_wait",
     "command_timeout",
     "joint_stiffness",
     "joint_damping",
-    "force_reference",
-    "gamma",
     "max_force",
     "force_bound_gain",
-    "max_push",
-    "translational_stiffness",
-    "rotational_stiffness",
-    "translational_damping",
-    "rotational_damping",
+    "status_timeout_periods",
     "station_timeout",
     "wrench_timeout",
 )
-_NON_NEGATIVE = (
-    "command_wait",
-    "realtime_rate",
-    "contact_dissipation",
-    "alpha",
-    "posture_stiffness",
-    "posture_damping",
+_POSITIVE = (
+    "command_timeout",
+    "joint_stiffness",
+    "joint_damping",
+    "max_force",
+    "force_bound_gain",
+    "station_timeout",
+    "wrench_timeout",
 )
+_NON_NEGATIVE = ("command_wait", "realtime_rate")
 
 
 def _validate(config: HardwareConfig) -> HardwareConfig:
@@ -137,24 +125,70 @@ def _validate(config: HardwareConfig) -> HardwareConfig:
     return config
 
 
-def load_hardware_config(source: str | Path | None = None, overrides=()) -> HardwareConfig:
-    """The hardware settings of a built-in name or a YAML file, with --set overrides.
-
-    Raises:
-        ScenarioError: one line naming the first bad key and what is allowed.
-    """
+def _split(source, overrides) -> tuple[dict, dict, list[str]]:
+    """(the scenario file's mapping or {} for a built-in, its hardware section, the
+    scenario's overrides); the hardware overrides go into the section."""
     data: dict = {}
     if source is not None and str(source) not in BUILTIN_HARDWARE_SCENARIOS:
         path = Path(source)
         if not path.is_file():
             raise ScenarioError(
                 f"scenario: '{source}' is neither a hardware scenario "
-                f"({', '.join(BUILTIN_HARDWARE_SCENARIOS)}) nor a YAML file"
+                f"({', '.join(BUILTIN_HARDWARE_SCENARIOS)}) nor a spatial scenario's YAML file"
             )
         data = yaml.safe_load(path.read_text()) or {}
-        if not isinstance(data, dict):
-            raise ScenarioError(f"scenario: '{source}' must hold a YAML mapping of keys")
+        if not isinstance(data, dict) or data.get("kind") != "spatial":
+            raise ScenarioError(f"kind: the hardware runs a spatial scenario; '{source}' is not")
         data.setdefault("name", path.stem)
-    elif source is not None:
-        data = {"name": str(source)}
-    return _validate(load_typed(data, HardwareConfig, overrides))
+    section = data.pop("hardware", None) or {}
+    if not isinstance(section, dict):
+        raise ScenarioError("hardware: must be a mapping of the hardware keys")
+    rest = []
+    for item in overrides:
+        key, _, value = str(item).partition("=")
+        if key in _SECTION_KEYS or key == "duration":
+            section[key] = parse_value(value)
+        elif key == "rate":
+            rate = float(value)
+            if not rate > 0:
+                raise ScenarioError(f"rate: must be a number > 0 (Hz), got {value}")
+            rest.append(f"time_step={1.0 / rate!r}")
+        else:
+            rest.append(str(item))
+    return data, section, rest
+
+
+def spatial_scenario(config: HardwareConfig) -> SpatialScenario:
+    """The spatial scenario `config` was loaded from, with its overrides."""
+    data, _, _ = _split(config.scenario, ())
+    if not data:
+        return load_scenario(config.scenario, config.scenario_overrides)
+    data.pop("kind")
+    return load_spatial_scenario(data, config.scenario_overrides)
+
+
+def load_hardware_config(source: str | Path | None = None, overrides=()) -> HardwareConfig:
+    """The hardware settings of a spatial scenario (a built-in name or a YAML file; None:
+    ``panda_surface_press``), with --set overrides.
+
+    Raises:
+        ScenarioError: one line naming the first bad key and what is allowed.
+    """
+    source = "panda_surface_press" if source is None else str(source)
+    _, section, rest = _split(source, overrides)
+    duration = section.pop("duration", None)
+    unknown = sorted(set(section) - set(_SECTION_KEYS))
+    if unknown:
+        raise ScenarioError(
+            f"hardware.{unknown[0]}: unknown key; the hardware keys are {', '.join(_SECTION_KEYS)}"
+        )
+    config = load_typed(section, HardwareConfig, ())
+    config.scenario, config.scenario_overrides = source, rest
+    scenario = spatial_scenario(config)
+    config.name = scenario.name
+    config.duration = scenario.duration if duration is None else duration
+    if not (isinstance(config.duration, int | float) and 0 < config.duration < math.inf):
+        raise ScenarioError(f"duration: must be a finite number > 0 (s), got {duration!r}")
+    config.rate = 1.0 / scenario.time_step
+    config.force_reference = scenario.force_reference
+    return _validate(config)

@@ -1,147 +1,202 @@
-"""The controller process's law: the paper's optimal admittance (eq. 10, corrected sign) in
-its sampled, incremental form along the press axis, around a 6-D Cartesian PD on the tool's
-tip, computed on plain floats once per status message.
+"""The controller process's law: the project's own systems, the sampled optimal admittance
+law (``systems.optimal_admittance``, eq. 10 with the corrected sign) and the 6-D Cartesian
+PID (``systems.cartesian_pid``, eq. 14-16), on the controller's own model of the spatial
+scenario's arm, with the scenario's numbers (``spatial_point``: pid.kp/kd/ki, Gamma,
+alpha, the travel bounds, the posture task), stepped once per status message.
 
-The law (docs/paper-notes.md section 3) with the explicit force bound of
-``admittance.systems.optimal_admittance``:
+Between the messages and the systems:
 
-    E_b[k] = (Fr - F[k]) - mu max(0, F[k] - Fg),      Fg = (Fr + Fmax) / 2
-    Xr[k]  = clip(Xr[k-1] + Gamma K (dt E_b[k] + alpha (E_b[k] - E_b[k-1])), -max_push, max_push)
+* the model is the scenario's plant (``AddSpatialArm``: the arm, its tool, the control
+  frame E) in a diagram of its own with the point's kinematics, its PID and the plan Xd(t)
+  of ``spatial_plan`` (the approach onto the planned table); the status's q, v are set as
+  the model's state and the status's time as the diagram's time;
+* the PID runs without gravity compensation: the robot's torque interface (the station's)
+  adds it, so the command excludes it;
+* the force is the wrist wrench of ``lcmt_force_torque`` (in the sensor frame, the tool's
+  frame at ``tool_weld``) read along E's z, into the table: F = -(R_ES f_S) . e_z;
+* Fr(t) is the scenario's ramp ``spatial_force_reference`` scaled to the Fr in force;
+* each status is one sample of both sampled systems (n samples after a gap of n periods),
+  in the order of the simulated loop: both updates are computed from the state before
+  either (the PID's Xc = Xd + Xr reads the offset the law held since the previous sample),
+  then both applied, then the PID's held torque is the command.
 
-with dt the status clock's step. This is the difference form of Xr = Gamma K [z + alpha
-(E - E0)], dz/dt = E; kept as an increment, the offset Xr is the law's state, so a change of
-Gamma, alpha or Fmax while running changes its rate and never its value (bumpless), and a
-step of Fr moves Xr by Gamma K alpha dFr at once, as the continuous law does.
-
-The Cartesian PD (the PID of eq. 14-16 with Ki = 0: the law's integral removes the force
-error) pulls the tip T toward p_ref = p_plan - Xr e_z (the press axis is the world's -z) and
-the tool's orientation toward the plan's, with a null-space posture term for the seventh
-joint. The torques exclude gravity: the Panda's torque interface adds it.
+A parameter message changes Fr (an input), or Gamma, alpha, Fmax: the law is rebuilt with
+the new values and its state carried over, its integral z rescaled so that Gamma K z, the
+offset's integral part, is unchanged (bumpless: with alpha = 0, as the scenario's, Xr does
+not move at all).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
-from pydrake.math import RotationMatrix
-from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.tree import JacobianWrtVariable
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import Demultiplexer, PassThrough, TrajectorySource
 
-from admittance.diagrams.hardware.config import HardwareConfig
-from admittance.diagrams.hardware.panda import AddPanda
+from admittance.diagrams.loop.point import (
+    AddCommandedPosition,
+    AddForceController,
+    AddPointKinematics,
+    AddPointPid,
+)
+from admittance.diagrams.loop.spatial_arm import (
+    BuildSpatialLoop,
+    spatial_force_reference,
+    spatial_plan,
+)
+from admittance.diagrams.robots.spatial_arm import (
+    CONTROL_FRAME,
+    NORMAL_AXIS,
+    TOOL_BODY,
+    AddSpatialArm,
+    spatial_point,
+)
+from admittance.diagrams.scenario.spatial_arm import SPATIAL_COORDINATES, SpatialScenario
 
-__all__ = ["AdmittanceLaw", "CartesianPd", "force_along"]
+__all__ = ["SpatialControlLaw", "start_positions"]
+
+SIZE = len(SPATIAL_COORDINATES)
+LAW_PARAMETERS = ("force_reference", "gamma", "alpha", "max_force")
 
 
-class AdmittanceLaw:
-    """The sampled optimal admittance law along one axis (module docstring)."""
+def start_positions(scenario: SpatialScenario) -> np.ndarray:
+    """The arm's joints at t = 0, where the simulated loop starts it (``arm.initial_joints``,
+    or the inverse kinematics of the plan's start from ``arm.joint_guess``): read from the
+    loop that ``simulate`` builds, so both start from the same posture.
+
+    Raises:
+        ScenarioError: the start is out of reach (one line).
+    """
+    return BuildSpatialLoop(scenario).initial_positions
+
+
+class SpatialControlLaw:
+    """The scenario's force law and Cartesian PID on the controller's model (module
+    docstring); :meth:`step` is one sample."""
 
     def __init__(
-        self,
-        *,
-        force_reference: float,
-        gamma: float,
-        alpha: float,
-        stiffness: float,
-        max_force: float,
-        force_bound_gain: float,
-        max_push: float,
+        self, scenario: SpatialScenario, *, max_force: float = math.inf, force_bound_gain=4.0
     ) -> None:
-        self.force_reference = float(force_reference)
-        self.gamma = float(gamma)
-        self.alpha = float(alpha)
+        self.scenario = scenario
+        builder = DiagramBuilder()
+        plant, _, _ = AddSpatialArm(builder, scenario)
+        self.plant = plant
+        self.initial_positions = start_positions(scenario)
+        point = spatial_point(scenario, plant, self.initial_positions)
+        self.point = dataclasses.replace(point, gravity_compensation=False)
+        plan = builder.AddNamedSystem("plan", TrajectorySource(spatial_plan(scenario), 1))
+        split = builder.AddNamedSystem("plan_split", Demultiplexer([SIZE, SIZE]))
+        builder.Connect(plan.get_output_port(), split.get_input_port())
+        kinematics = AddPointKinematics(builder, plant, self.point)
+        self.pid = AddPointPid(builder, plant, self.point, kinematics, split.get_output_port(1))
+        commanded = AddCommandedPosition(builder, self.point, split.get_output_port(0), self.pid)
+        offset = builder.AddNamedSystem("reference_offset", PassThrough(SIZE))
+        builder.Connect(offset.get_output_port(), commanded.get_input_port(1))
+        builder.ExportInput(offset.get_input_port(), "reference_offset")
+        self.model = builder.Build()
+        self.context = self.model.CreateDefaultContext()
+        self._plant_context = plant.GetMyMutableContextFromRoot(self.context)
+        self._pid_context = self.pid.GetMyMutableContextFromRoot(self.context)
+        self._offset_input = self.model.GetInputPort("reference_offset")
+        self._offset_input.FixValue(self.context, np.zeros(SIZE))
+        self._tool = plant.GetBodyByName(TOOL_BODY).body_frame()
+        self._control_frame = plant.GetFrameByName(CONTROL_FRAME)
+        self._ramp = spatial_force_reference(scenario)
+        self.force_reference = scenario.force_reference
+        self.gamma = self.point.law.gamma
+        self.alpha = self.point.law.alpha
         self.max_force = float(max_force)
-        self.stiffness = float(stiffness)
         self.force_bound_gain = float(force_bound_gain)
-        self.max_push = float(max_push)
-        self.offset = 0.0
-        self._previous_error: float | None = None
+        self._law = None
+        self._build_law()
 
-    def bounded_error(self, force: float) -> float:
-        """E_b = (Fr - F) - mu max(0, F - Fg)."""
-        guard = 0.5 * (self.force_reference + self.max_force)
-        excess = force - guard if force > guard else 0.0
-        return (self.force_reference - force) - self.force_bound_gain * excess
+    def _build_law(self) -> None:
+        """(Re)builds the force law with the current Gamma, alpha and Fmax, carrying the
+        previous law's state (its integral rescaled by the old Gamma over the new)."""
+        law = dataclasses.replace(
+            self.point.law,
+            gamma=self.gamma,
+            alpha=self.alpha,
+            max_force=self.max_force,
+            force_bound_gain=self.force_bound_gain,
+        )
+        builder = DiagramBuilder()
+        system = AddForceController(builder, dataclasses.replace(self.point, law=law))
+        diagram = builder.Build()
+        context = diagram.CreateDefaultContext()
+        law_context = system.GetMyMutableContextFromRoot(context)
+        system.desired_force_input.FixValue(law_context, [0.0])
+        system.measured_force_input.FixValue(law_context, [0.0])
+        if self._law is not None:
+            old_system, _, old_context = self._law
+            law_context.get_mutable_discrete_state().SetFrom(old_context.get_discrete_state())
+            integral = self.integral
+            system.set_integral(
+                law_context, integral * old_system.integral_gain / system.integral_gain
+            )
+        self._law = (system, diagram, law_context)
 
-    def update(self, force: float, dt: float) -> float:
-        """Advances the law by one sample of length `dt` s; returns the offset Xr, m."""
-        error = self.bounded_error(force)
-        previous = error if self._previous_error is None else self._previous_error
-        step = self.gamma * self.stiffness * (dt * error + self.alpha * (error - previous))
-        self.offset = min(self.max_push, max(-self.max_push, self.offset + step))
-        self._previous_error = error
-        return self.offset
+    @property
+    def integral(self) -> np.ndarray:
+        """z, the law's integral of the force error, N s."""
+        system, _, context = self._law
+        return context.get_discrete_state(0).CopyToVector()
 
-    def hold(self, force: float | None = None) -> float:
-        """The offset held (no update): what a failed measurement leaves; the next valid
-        sample restarts the difference from its own error (no jump)."""
-        self._previous_error = None
-        return self.offset
+    @property
+    def offset(self) -> float:
+        """Xr along E's z held by the law (into the table), m."""
+        system, _, context = self._law
+        return float(system.reference_offset_output.Eval(context)[NORMAL_AXIS])
 
     def set_parameters(self, **values: float) -> None:
-        """Changes Fr, Gamma, alpha or Fmax; the offset Xr continues (bumpless)."""
+        """Changes Fr, Gamma, alpha or Fmax (bumpless: see the module docstring)."""
         for key, value in values.items():
-            if key not in ("force_reference", "gamma", "alpha", "max_force"):
+            if key not in LAW_PARAMETERS:
                 raise ValueError(f"unknown law parameter {key!r}")
             setattr(self, key, float(value))
+        if set(values) - {"force_reference"}:
+            self._build_law()
 
+    def desired_force(self, time: float) -> float:
+        """Fr(t): the scenario's ramp, scaled to the Fr in force, N."""
+        ramp = float(self._ramp.value(time)[0, 0])
+        return ramp * self.force_reference / self.scenario.force_reference
 
-class CartesianPd:
-    """The 6-D Cartesian PD on the Panda's tool tip, from the controller's own model.
+    def set_state(self, time: float, q, v) -> None:
+        """The model at the status: its time and the arm's joints."""
+        self.context.SetTime(time)
+        self.plant.SetPositionsAndVelocities(self._plant_context, np.concatenate([q, v]))
 
-    tau = J^T [k_r e_R - d_r w; k_t (p_ref - p) - d_t v] + N^T (k_q (q0 - q) - d_q qdot)
-
-    with J the tip's spatial-velocity Jacobian in the world, e_R the rotation vector of
-    R_ref R^T and N^T = I - J^T (J^+)^T the null-space projector; clipped to the effort
-    limits. No gravity term (the robot adds it).
-    """
-
-    def __init__(self, config: HardwareConfig) -> None:
-        self._plant = MultibodyPlant(0.0)
-        model = AddPanda(self._plant)
-        self._plant.Finalize()
-        self._context = self._plant.CreateDefaultContext()
-        self._frame = model.tool.body_frame()
-        self._world = self._plant.world_frame()
-        self._p_ST = model.p_ST.reshape(3, 1)
-        self._limits = model.effort_limits
-        self._kt, self._dt = config.translational_stiffness, config.translational_damping
-        self._kr, self._dr = config.rotational_stiffness, config.rotational_damping
-        self._kq, self._dq = config.posture_stiffness, config.posture_damping
-
-    def tip_pose(self, q: np.ndarray) -> tuple[np.ndarray, RotationMatrix]:
-        """p_WT and R_WS at the joint positions q."""
-        self._plant.SetPositions(self._context, q)
-        X_WS = self._plant.CalcRelativeTransform(self._context, self._world, self._frame)
-        return X_WS.multiply(self._p_ST).reshape(3), X_WS.rotation()
-
-    def torque(
-        self,
-        q: np.ndarray,
-        v: np.ndarray,
-        p_ref: np.ndarray,
-        R_ref: RotationMatrix,
-        q_posture: np.ndarray,
-    ) -> np.ndarray:
-        """The joint torques toward (p_ref, R_ref), at the pose set by q."""
-        p, R = self.tip_pose(q)
-        J = self._plant.CalcJacobianSpatialVelocity(
-            self._context, JacobianWrtVariable.kV, self._frame, self._p_ST, self._world, self._world
+    def force_along_normal(self, force_S) -> float:
+        """F = -(R_ES f_S) . e_z: the wrist's force on the tool, in its sensor frame, as the
+        tool's force on the table along E's z (the model's state set first), N."""
+        R_ES = self.plant.CalcRelativeRotationMatrix(
+            self._plant_context, self._control_frame, self._tool
         )
-        twist = J @ v
-        angle_axis = R_ref.multiply(R.inverse()).ToAngleAxis()
-        e_R = angle_axis.axis() * angle_axis.angle()
-        wrench = np.concatenate(
-            [self._kr * e_R - self._dr * twist[:3], self._kt * (p_ref - p) - self._dt * twist[3:]]
-        )
-        J_pinv = np.linalg.pinv(J)
-        null = np.eye(len(q)) - J.T @ J_pinv.T
-        tau = J.T @ wrench + null @ (self._kq * (q_posture - q) - self._dq * v)
-        return np.clip(tau, -self._limits, self._limits)
+        value = -R_ES.multiply(np.asarray(force_S, dtype=float))[NORMAL_AXIS]
+        return float(value) if math.isfinite(value) else math.nan
 
+    def step(self, time: float, q, v, force: float, samples: int = 1) -> np.ndarray:
+        """`samples` samples at the status (time, q, v) with the measured force (NaN: a
+        failed measurement, the law then holds its offset): one per period since the
+        previous status answered (a status lost or skipped leaves its period to the next,
+        its inputs held); returns the joint torques, N m."""
+        self.set_state(time, q, v)
+        system, _, law_context = self._law
+        system.desired_force_input.FixValue(law_context, [self.desired_force(time)])
+        system.measured_force_input.FixValue(law_context, [force])
+        for _ in range(max(1, samples)):
+            self._sample(system, law_context)
+        return self.pid.actuation_output.Eval(self._pid_context).copy()
 
-def force_along(R_WS: RotationMatrix, f_S: np.ndarray, axis: int = 2) -> float:
-    """The world component `axis` of a force measured in the sensor frame S."""
-    value = R_WS.multiply(np.asarray(f_S, dtype=float))[axis]
-    return float(value) if math.isfinite(value) else float("nan")
+    def _sample(self, system, law_context) -> None:
+        held = system.reference_offset_output.Eval(law_context)
+        self._offset_input.FixValue(self.context, held)
+        law_update = system.EvalUniquePeriodicDiscreteUpdate(law_context)
+        pid_update = self.pid.EvalUniquePeriodicDiscreteUpdate(self._pid_context)
+        # (Both are computed before either is applied.)
+        law_update, pid_update = law_update.Clone(), pid_update.Clone()
+        law_context.get_mutable_discrete_state().SetFrom(law_update)
+        self._pid_context.get_mutable_discrete_state().SetFrom(pid_update)

@@ -1,11 +1,13 @@
-"""The controller process: the paper's admittance law around a Cartesian PD, knowing the
-robot only through its LCM messages (Drake's hardware_sim convention).
+"""The controller process: the paper's admittance law around the Cartesian PID of the
+spatial scenario, knowing the robot only through its LCM messages (Drake's hardware_sim
+convention).
 
 Each ``lcmt_panda_status`` starts one cycle: the clock is the status ``utime`` (never the
 wall clock), the state is the status's joint positions and velocities, the force is the
-newest ``lcmt_force_torque`` rotated into the world by the controller's own model of the
-arm (a controller on hardware has the robot's model). The cycle runs the law, then the PD,
-and publishes one ``lcmt_panda_command`` whose ``utime`` is the status's.
+newest ``lcmt_force_torque`` read along the control frame's z by the controller's own model
+of the arm (a controller on hardware has the robot's model). The cycle is one sample of the
+law and the PID (``control_law.SpatialControlLaw``) and publishes one
+``lcmt_panda_command`` whose ``utime`` is the status's.
 
 Watchdogs, each logged with its time:
 
@@ -33,8 +35,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from drake import lcmt_force_torque, lcmt_panda_command, lcmt_panda_status
 
-from admittance.diagrams.hardware.config import HardwareConfig
-from admittance.diagrams.hardware.control_law import AdmittanceLaw, CartesianPd, force_along
+from admittance.diagrams.hardware.config import HardwareConfig, spatial_scenario
+from admittance.diagrams.hardware.control_law import SpatialControlLaw
 from admittance.diagrams.hardware.messages import CHANNELS, decode_parameters
 from admittance.diagrams.hardware.timing import CycleTiming
 
@@ -98,16 +100,11 @@ class AdmittanceController:
         self._lcm = lcm
         self._clock = clock
         self._cpu_clock = cpu_clock
-        self.law = AdmittanceLaw(
-            force_reference=config.force_reference,
-            gamma=config.gamma,
-            alpha=config.alpha,
-            stiffness=config.translational_stiffness,
+        self.law = SpatialControlLaw(
+            spatial_scenario(config),
             max_force=config.max_force,
             force_bound_gain=config.force_bound_gain,
-            max_push=config.max_push,
         )
-        self.pd = CartesianPd(config)
         self.timing = CycleTiming(self.period)
         self.events: list[ControllerEvent] = []
         self.trace = _Trace()
@@ -122,7 +119,6 @@ class AdmittanceController:
         self._pending: tuple[bytes, float] | None = None
         self._wrench_fault = False
         self._status_lost = False
-        self._plan: tuple | None = None
         self.finished = False
         lcm.Subscribe(CHANNELS.status, self._on_status)
         lcm.Subscribe(CHANNELS.wrench, self._on_wrench)
@@ -156,8 +152,9 @@ class AdmittanceController:
 
     # --- the cycle -----------------------------------------------------------------------
 
-    def _measured_force(self, R_WS) -> float | None:
-        """The press force (world +z on the tool), or None if the wrench is invalid."""
+    def _measured_force(self) -> float | None:
+        """The force along the control frame's z (into the table), or None if the wrench
+        is invalid."""
         if self._wrench_payload is not None:
             self._wrench = lcmt_force_torque.decode(self._wrench_payload)
             self._wrench_payload = None
@@ -180,7 +177,7 @@ class AdmittanceController:
         if self._wrench_fault:
             self._wrench_fault = False
             self.log("resume: valid wrench")
-        return force_along(R_WS, [wrench.fx, wrench.fy, wrench.fz])
+        return self.law.force_along_normal([wrench.fx, wrench.fy, wrench.fz])
 
     def _on_status(self, payload: bytes) -> None:
         arrival = self._clock()
@@ -207,18 +204,15 @@ class AdmittanceController:
             self.log("resume: status received")
         q = np.asarray(status.joint_position)
         v = np.asarray(status.joint_velocity)
-        p, R = self.pd.tip_pose(q)
-        if self._plan is None:
-            self._plan = (p.copy(), R, q.copy())
-            self.log(f"start: first status, tip at z = {p[2]:.4f} m")
-        force = self._measured_force(R)
-        if force is None:
-            offset = self.law.hold()
-        else:
-            offset = self.law.update(force, dt)
-        p_plan, R_plan, q_posture = self._plan
-        p_ref = p_plan - np.array([0.0, 0.0, offset])
-        tau = self.pd.torque(q, v, p_ref, R_plan, q_posture)
+        if not self.trace.times:
+            self.log("start: first status")
+        self.law.set_state(self.time, q, v)
+        force = self._measured_force()
+        # One sample per period since the last status answered (a lost status's period
+        # is the next one's), at most the status watchdog's count.
+        samples = min(max(1, int(round(dt / self.period))), self.config.status_timeout_periods)
+        tau = self.law.step(self.time, q, v, math.nan if force is None else force, samples)
+        offset = self.law.offset
         self._publish(status.utime, tau)
         self.timing.record(arrival, self._clock(), self._cpu_clock() - cpu)
         self.trace.times.append(self.time)

@@ -17,8 +17,8 @@ import numpy as np
 from drake import lcmt_force_torque, lcmt_panda_command
 
 from admittance.diagrams.hardware.messages import CHANNELS, status_at_rest
-from admittance.diagrams.hardware.panda import PANDA_HOME
 from admittance.diagrams.hardware.timing import quantiles
+from admittance.diagrams.scenario.spatial_arm import SpatialArmConfig
 
 __all__ = ["StatusPacer"]
 
@@ -32,9 +32,10 @@ class StatusPacer:
     def __init__(self, lcm, *, rate: float, force: float = 10.0) -> None:
         self._lcm = lcm
         self.period = 1.0 / rate
-        self._status = status_at_rest(0, PANDA_HOME)
+        # The Panda's posture above the table (the spatial scenario's default joint guess).
+        self._status = status_at_rest(0, np.array(SpatialArmConfig().joint_guess))
         self._wrench = lcmt_force_torque()
-        self._wrench.fz = -force  # the hand points down: the sensor's z is the world's -z
+        self._wrench.fz = -force  # the tool points into the table: the table pushes along -z
         self._sent: dict[int, float] = {}
         self._round_trips: list[float] = []
         self._send_lateness: list[float] = []

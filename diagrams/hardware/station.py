@@ -5,10 +5,13 @@ and its wrist sensor would (Drake's hardware_sim convention).
     PANDA_FT       lcmt_force_torque   the wrist sensor's tared wrench, every period
     PANDA_COMMAND  lcmt_panda_command  PandaCommandReceiver -> the command watchdog
 
-The plant is the Panda of example-robot-data with a welded tool and a table, through
-Drake's contact engine (point contact). The station's clock is its simulated time; the
-status ``utime`` is that time in microseconds, so a controller that keeps its clock from
-the status gives the same answer whether the station runs at real time or slower.
+The plant is the spatial scenario's (``robots.spatial_arm.AddSpatialArm``: the arm, its
+tool welded at ``tool_weld``, the table with the scenario's height error, tilts and contact
+parameters, through Drake's contact engine), started where the simulated loop starts it;
+the wrist sensor is at ``tool_weld`` (the tool body's frame). The station's clock is its
+simulated time; the status ``utime`` is that time in microseconds, so a controller that
+keeps its clock from the status gives the same answer whether the station runs at real
+time or slower.
 """
 
 from __future__ import annotations
@@ -21,21 +24,24 @@ from dataclasses import dataclass, field
 import numpy as np
 from drake import lcmt_force_torque, lcmt_panda_command, lcmt_panda_status
 from pydrake.manipulation import PandaCommandReceiver, PandaControlMode, PandaStatusSender
-from pydrake.multibody.plant import (
-    AddMultibodyPlant,
-    MultibodyPlant,
-    MultibodyPlantConfig,
-)
+from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.controllers import InverseDynamics
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem, LcmSubscriberSystem
 from pydrake.systems.primitives import Demultiplexer, LogVectorOutput
 
-from admittance.diagrams.hardware.config import HardwareConfig
+from admittance.diagrams.hardware.config import HardwareConfig, spatial_scenario
+from admittance.diagrams.hardware.control_law import start_positions
 from admittance.diagrams.hardware.interface import CommandWatchdog, WristWrenchSensor
 from admittance.diagrams.hardware.messages import CHANNELS
-from admittance.diagrams.hardware.panda import PANDA_HOME, TOOL_LENGTH, AddPanda
+from admittance.diagrams.robots.spatial_arm import (
+    CONTROL_FRAME,
+    NORMAL_AXIS,
+    TOOL_BODY,
+    TOOL_TIP_FRAME,
+    AddSpatialArm,
+)
 from admittance.diagrams.run.metrics import (
     final_window,
     first_contact_time,
@@ -55,37 +61,24 @@ class Station:
     plant: MultibodyPlant
     watchdog: CommandWatchdog
     loggers: dict
-    # The gravity compensation's own model, kept alive beside the diagram that uses it.
-    arm_model: MultibodyPlant
+    # The arm's joints at t = 0, rad.
+    initial_positions: np.ndarray
 
 
 def BuildStation(config: HardwareConfig, lcm) -> Station:
     """The station of `config` on the LCM instance `lcm` (a DrakeLcm)."""
     period = 1.0 / config.rate
+    scenario = spatial_scenario(config)
     builder = DiagramBuilder()
-    plant, _ = AddMultibodyPlant(
-        MultibodyPlantConfig(
-            time_step=period, contact_model="point", discrete_contact_approximation="sap"
-        ),
-        builder,
-    )
+    plant, _, _ = AddSpatialArm(builder, scenario)
     plant.set_name("panda_plant")
-    model = AddPanda(
-        plant,
-        table_height=config.table_height,
-        contact_stiffness=config.contact_stiffness,
-        contact_dissipation=config.contact_dissipation,
-    )
-    plant.Finalize()
-    plant.SetDefaultPositions(PANDA_HOME)
-
-    # The robot's own model for its gravity compensation (arm and tool, no table).
-    arm = MultibodyPlant(0.0)
-    AddPanda(arm)
-    arm.Finalize()
+    initial = start_positions(scenario)
+    plant.SetDefaultPositions(initial)
+    effort_limits = plant.GetEffortUpperLimits()
+    # The robot's gravity compensation, from the same model (arm and tool).
     gravity = builder.AddNamedSystem(
         "gravity_compensation",
-        InverseDynamics(arm, InverseDynamics.InverseDynamicsMode.kGravityCompensation),
+        InverseDynamics(plant, InverseDynamics.InverseDynamicsMode.kGravityCompensation),
     )
     builder.Connect(plant.get_state_output_port(), gravity.get_input_port_estimated_state())
 
@@ -110,9 +103,9 @@ def BuildStation(config: HardwareConfig, lcm) -> Station:
             mode=config.mode,
             period=period,
             command_timeout=config.command_timeout,
-            **joint_gains(arm, config, period),
-            effort_limits=model.effort_limits,
-            initial_position=PANDA_HOME,
+            **joint_gains(plant, initial, config, period),
+            effort_limits=effort_limits,
+            initial_position=initial,
         ),
     )
     # The watchdog reads the same channel decoded in Python (the receiver's is C++'s).
@@ -142,7 +135,9 @@ def BuildStation(config: HardwareConfig, lcm) -> Station:
     )
     builder.Connect(status.get_output_port(), status_publisher.get_input_port())
 
-    sensor = builder.AddNamedSystem("wrist_sensor", WristWrenchSensor(plant, model.tool))
+    sensor = builder.AddNamedSystem(
+        "wrist_sensor", WristWrenchSensor(plant, plant.GetBodyByName(TOOL_BODY))
+    )
     builder.Connect(plant.get_contact_results_output_port(), sensor.GetInputPort("contact_results"))
     builder.Connect(plant.get_body_poses_output_port(), sensor.GetInputPort("body_poses"))
     wrench_publisher = builder.AddNamedSystem(
@@ -158,19 +153,25 @@ def BuildStation(config: HardwareConfig, lcm) -> Station:
     }
     diagram = builder.Build()
     diagram.set_name("station")
-    return Station(diagram=diagram, plant=plant, watchdog=watchdog, loggers=loggers, arm_model=arm)
+    return Station(
+        diagram=diagram,
+        plant=plant,
+        watchdog=watchdog,
+        loggers=loggers,
+        initial_positions=initial,
+    )
 
 
-def joint_gains(arm: MultibodyPlant, config: HardwareConfig, period: float) -> dict:
+def joint_gains(arm: MultibodyPlant, q, config: HardwareConfig, period: float) -> dict:
     """The station's joint PD gains, per joint: ``joint_damping`` and ``joint_stiffness``
     capped where the joint is light. The discrete plant applies the PD's torque explicitly
     over each step, which is stable for d_i h / M_ii < 2 (M_ii the joint's inertia at the
-    home posture, h the step); the cap keeps d_i <= 0.5 M_ii / h, and k_i <= d_i^2 / M_ii
+    start posture q, h the step); the cap keeps d_i <= 0.5 M_ii / h, and k_i <= d_i^2 / M_ii
     (damping ratio 0.5 or more). The wrist's last joint (M_77 = 0.0067 kg m^2, the Panda
     without its motors' reflected inertia, which the URDF does not give) gets d = 3.3 N m s/rad.
     """
     context = arm.CreateDefaultContext()
-    arm.SetPositions(context, PANDA_HOME)
+    arm.SetPositions(context, q)
     inertia = np.diag(arm.CalcMassMatrix(context))
     damping = np.minimum(config.joint_damping, 0.5 * inertia / period)
     stiffness = np.minimum(config.joint_stiffness, damping**2 / inertia)
@@ -182,9 +183,10 @@ class StationRun:
     """What a station run measured."""
 
     times: np.ndarray
-    # The contact force on the tool along the world's +z (the press force), N.
+    # The tool's contact force on the table along the control frame's z (the press), N.
     force: np.ndarray
     hold: np.ndarray
+    # The tool tip's depth along the control frame's z (0: the planned surface), m.
     tip_height: np.ndarray
     wall_time: float
     real_time_rate: float
@@ -259,9 +261,16 @@ def run_station(config: HardwareConfig, lcm, *, progress=None, stop=None) -> Sta
     logs = {name: logger.FindLog(context) for name, logger in station.loggers.items()}
     simulated = context.get_time()
     wrench = logs["wrench"].data()
+    plant = station.plant
+    normal_W = (
+        plant.GetFrameByName(CONTROL_FRAME)
+        .CalcPoseInWorld(plant.CreateDefaultContext())
+        .rotation()
+        .matrix()[:, NORMAL_AXIS]
+    )
     return StationRun(
         times=logs["wrench"].sample_times().copy(),
-        force=wrench[2].copy(),
+        force=-(normal_W @ wrench[:3]),
         hold=np.interp(
             logs["wrench"].sample_times(), logs["hold"].sample_times(), logs["hold"].data()[0]
         ),
@@ -275,16 +284,16 @@ def run_station(config: HardwareConfig, lcm, *, progress=None, stop=None) -> Sta
 
 
 def _tip_heights(station: Station, log) -> np.ndarray:
-    """The tool tip's height above the base at each logged state, m."""
+    """The tool tip's depth along the control frame's z (into the planned table) at each
+    logged state, m (0 on the planned surface, negative above it)."""
     plant = station.plant
     context = plant.CreateDefaultContext()
-    frame = plant.GetBodyByName("tool").body_frame()
-    p_ST = np.array([0.0, 0.0, TOOL_LENGTH])
-    heights = []
+    tip, frame = plant.GetFrameByName(TOOL_TIP_FRAME), plant.GetFrameByName(CONTROL_FRAME)
+    depths = []
     for x in log.data().T:
         plant.SetPositionsAndVelocities(context, x)
-        heights.append(frame.CalcPoseInWorld(context).multiply(p_ST)[2])
-    return np.asarray(heights)
+        depths.append(plant.CalcRelativeTransform(context, frame, tip).translation()[NORMAL_AXIS])
+    return np.asarray(depths)
 
 
 def station_metrics(run: StationRun, config: HardwareConfig) -> dict:
