@@ -21,13 +21,12 @@ from replay_data import replay_commands, replay_tracks
 import admittance.diagrams.views.picture as picture
 import admittance.diagrams.views.replay as visualization
 import admittance.diagrams.views.spatial_replay as spatial_replay_module
+from admittance.diagrams.app.cli import main
 from admittance.diagrams.loop.planar_arm import BuildClosedLoop
 from admittance.diagrams.robots.planar_arm import AddScenarioArm
 from admittance.diagrams.robots.spatial_arm import example_robot_data_packages
 from admittance.diagrams.run.planar_arm import run_scenario
-from admittance.diagrams.run.spatial_arm import run_spatial
 from admittance.diagrams.scenario.files import load_scenario
-from admittance.diagrams.views.figures import write_replay
 from admittance.diagrams.views.picture import DiagramPictureError, write_diagram_picture
 from admittance.diagrams.views.replay import write_meshcat_replay
 
@@ -185,15 +184,14 @@ TABLE_THICKNESS = 0.05
 
 
 @pytest.fixture(scope="module")
-def spatial_result():
-    return run_spatial(load_scenario("panda_surface_follow", SHORT_FOLLOW))
-
-
-@pytest.fixture(scope="module")
-def spatial_replay(spatial_result, tmp_path_factory):
-    """The decoded Meshcat commands of the short follow's replay, by views' dispatch."""
-    path = tmp_path_factory.mktemp("spatial_replay") / "replay.html"
-    assert write_replay(spatial_result, path) == path
+def spatial_replay(tmp_path_factory):
+    """The decoded Meshcat commands of the short follow's replay, written by
+    `admittance simulate --meshcat-html` (through views.figures.write_replay)."""
+    folder = tmp_path_factory.mktemp("spatial_replay")
+    path = folder / "replay.html"
+    overrides = [argument for key in SHORT_FOLLOW for argument in ("--set", key)]
+    arguments = ["simulate", "panda_surface_follow", *overrides, "-q"]
+    assert main([*arguments, "--out", str(folder / "run"), "--meshcat-html", str(path)]) == 0
     return replay_commands(path.read_text(encoding="utf-8"))
 
 
