@@ -21,7 +21,7 @@ NOTEBOOKS = sorted(NOTEBOOK_DIR.glob("*.ipynb"))
 CELL_TIMEOUT = 300
 
 
-def test_the_six_notebooks_are_there_and_no_other():
+def test_the_seven_notebooks_are_there_and_no_other():
     """The notebooks README.md lists, each run below (a new one must be listed here)."""
     assert [path.name for path in NOTEBOOKS] == [
         "build_your_own_loop.ipynb",
@@ -29,6 +29,7 @@ def test_the_six_notebooks_are_there_and_no_other():
         "flexiforce_sensor.ipynb",
         "grasp.ipynb",
         "reproduce_paper.ipynb",
+        "spatial_arm.ipynb",
         "stability_analysis.ipynb",
     ]
 

@@ -13,13 +13,18 @@ import struct
 
 import numpy as np
 import pytest
+from pydrake.common.eigen_geometry import Quaternion
+from pydrake.math import RotationMatrix
 from pydrake.systems.framework import DiagramBuilder
 from replay_data import replay_commands, replay_tracks
 
 import admittance.diagrams.views.picture as picture
 import admittance.diagrams.views.replay as visualization
+import admittance.diagrams.views.spatial_replay as spatial_replay_module
+from admittance.diagrams.app.cli import main
 from admittance.diagrams.loop.planar_arm import BuildClosedLoop
 from admittance.diagrams.robots.planar_arm import AddScenarioArm
+from admittance.diagrams.robots.spatial_arm import example_robot_data_packages
 from admittance.diagrams.run.planar_arm import run_scenario
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.diagrams.views.picture import DiagramPictureError, write_diagram_picture
@@ -154,6 +159,95 @@ def test_replay_view_is_the_x_y_plane_with_x_right_and_y_up(replay, moving_wall_
     assert left < 0.0 < right and bottom < 0.0 < top
     assert left < x.min() and x.max() + visualization.WALL_THICKNESS < right
     assert bottom < y.min() and y.max() < top
+
+
+# ------------------------------------------------------------------- spatial replay
+
+needs_robots = pytest.mark.skipif(
+    example_robot_data_packages() is None,
+    reason='example-robot-data is not installed: pip install "optimal-admittance[robots]"',
+)
+# The follow task shortened: approach 1 s, force ramp 1 s, press 0.5 s, so the slide starts
+# at 2.5 s; 2 cm out at 2 cm/s with 0.5 s cubic blends reaches 1 cm at 3.25 s (by symmetry
+# of the out leg, 0.5 v b + v (0.75 - 0.5) = 5 mm + 5 mm) and stops at 2 cm at 4.0 s.
+SHORT_FOLLOW = ["trajectory.press_time=0.5", "trajectory.slide_distance=0.02", "duration=4.0"]
+SLIDE_TIMES = (2.5, 3.25, 4.0)
+SLIDE_X = (0.0, 0.01, 0.02)
+# panda_surface_follow's planned contact point (surface.position, surface.height), its Fr,
+# the tool (a 1 cm sphere on a 15 cm shaft: the tip 16 cm from the flange along its z) and
+# the table's thickness (robots.spatial_arm.TABLE_SIZE).
+CONTACT = np.array([0.45, -0.05, 0.2])
+FORCE_REFERENCE = 10.0
+SURFACE_STIFFNESS = 1e5
+TIP_OFFSET = 0.15 + 0.01
+TABLE_THICKNESS = 0.05
+
+
+@pytest.fixture(scope="module")
+def spatial_replay(tmp_path_factory):
+    """The decoded Meshcat commands of the short follow's replay, written by
+    `admittance simulate --meshcat-html` (through views.figures.write_replay)."""
+    folder = tmp_path_factory.mktemp("spatial_replay")
+    path = folder / "replay.html"
+    overrides = [argument for key in SHORT_FOLLOW for argument in ("--set", key)]
+    arguments = ["simulate", "panda_surface_follow", *overrides, "-q"]
+    assert main([*arguments, "--out", str(folder / "run"), "--meshcat-html", str(path)]) == 0
+    return replay_commands(path.read_text(encoding="utf-8"))
+
+
+def _objects(commands, part: str) -> list[dict]:
+    return [c for c in commands if c["type"] == "set_object" and part in c["path"]]
+
+
+@needs_robots
+def test_spatial_replay_holds_the_arms_meshes_the_tool_and_the_table(spatial_replay):
+    # Every link of the Panda and its hand, drawn from its own Collada mesh.
+    for link in [f"panda_link{i}" for i in range(8)] + ["panda_hand"]:
+        (mesh,) = _objects(spatial_replay, f"/drake/visualizer/panda/{link}/")
+        (geometry,) = mesh["object"]["geometries"]
+        assert geometry["type"] == "_meshfile_geometry" and geometry["format"] == "dae"
+        assert "<COLLADA" in geometry["data"][:500]
+    # The tool's sphere (1 cm) and the table: a box whose top is at the planned height (no
+    # height error or tilt here), centred under the planned contact point.
+    (sphere,) = _objects(spatial_replay, "/tool/tool_visual")
+    assert sphere["object"]["geometries"][0]["radius"] == pytest.approx(0.01)
+    (table,) = _objects(spatial_replay, "/table/table_visual")
+    assert table["object"]["geometries"][0]["type"] == "BoxGeometry"
+    tracks = replay_tracks(spatial_replay)
+    table_position = tracks[("/drake/visualizer/table/table", "position")][0]["value"]
+    np.testing.assert_allclose(
+        table_position, CONTACT - [0.0, 0.0, 0.5 * TABLE_THICKNESS], atol=1e-12
+    )
+
+
+@needs_robots
+def test_spatial_replay_tool_moves_along_the_slide_and_presses_fr(spatial_replay):
+    tracks = replay_tracks(spatial_replay)
+    position = tracks[("/drake/visualizer/tool/tool", "position")]
+    quaternion = tracks[("/drake/visualizer/tool/tool", "quaternion")]
+    commanded = tracks[(visualization.COMMANDED_PATH, "position")]
+    head = tracks[(f"{visualization.FORCE_PATH}/head", "position")]
+    for t, x in zip(SLIDE_TIMES, SLIDE_X, strict=True):
+        frame = int(round(t * visualization.REPLAY_FRAMES_PER_SECOND))
+        assert position[frame]["time"] == frame
+        qx, qy, qz, qw = quaternion[frame]["value"]  # three.js order
+        R_WT = RotationMatrix(Quaternion(qw, qx, qy, qz))
+        tip = np.array(position[frame]["value"]) + R_WT.col(2) * TIP_OFFSET
+        # The plan, slid by x along world x (slide_direction 0), Fr / k = 0.1 mm into the
+        # table's top (the sphere's linear contact stiffness, surface.stiffness = 1e5 N/m).
+        # Tolerance: measured 7 um in the plane and 0.3 um in depth; 0.1 mm is 14 times that
+        # and a fifth of a frame's slide at full speed (2 cm/s / 32 frames/s = 0.6 mm).
+        expected = CONTACT + [x, 0.0, -FORCE_REFERENCE / SURFACE_STIFFNESS]
+        np.testing.assert_allclose(tip, expected, atol=1e-4)
+        # The commanded position (green dot) is the plan's x exactly.
+        assert commanded[frame]["value"][0] == pytest.approx(CONTACT[0] + x, abs=1e-9)
+        # The force arrow points down into the table, Fr long at 1 cm/N (the force within
+        # 1 % of Fr: measured 0.3 %).
+        arrow = tip - np.array(head[frame]["value"])
+        np.testing.assert_allclose(arrow[:2], 0.0, atol=1e-9)
+        assert arrow[2] == pytest.approx(
+            FORCE_REFERENCE * spatial_replay_module.ARROW_METERS_PER_NEWTON, rel=0.01
+        )
 
 
 # ------------------------------------------------------------------- diagram picture

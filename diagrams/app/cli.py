@@ -113,15 +113,11 @@ def _cmd_simulate(args: argparse.Namespace, progress) -> int:
     from admittance.diagrams.run.engine import SimulationDivergedError
     from admittance.diagrams.run.simulation import simulate
     from admittance.diagrams.scenario.files import load_scenario
-    from admittance.diagrams.scenario.schema import ScenarioError
-    from admittance.diagrams.scenario.spatial_arm import SpatialScenario
     from admittance.diagrams.views.figures import write_replay
 
     scenario = load_scenario(args.scenario, args.overrides)
     out = Path(args.out) if args.out else Path("results") / scenario.name
     check_output_dir(out, overwrite=args.force)
-    if args.meshcat_html and isinstance(scenario, SpatialScenario):
-        raise ScenarioError("--meshcat-html: the spatial arm has no Meshcat replay yet")
     if args.meshcat_html:
         check_writable(args.meshcat_html, "--meshcat-html")
         check_replay_file(args.meshcat_html, args.force)

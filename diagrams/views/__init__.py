@@ -7,3 +7,4 @@ from admittance.diagrams.views.picture import *  # noqa: F403
 from admittance.diagrams.views.plots import *  # noqa: F403
 from admittance.diagrams.views.replay import *  # noqa: F403
 from admittance.diagrams.views.spatial_arm import *  # noqa: F403
+from admittance.diagrams.views.spatial_replay import *  # noqa: F403

@@ -14,12 +14,12 @@ from pathlib import Path
 
 from admittance.diagrams.run.planar_gripper import GraspResult
 from admittance.diagrams.run.spatial_arm import SpatialResult
-from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.diagrams.views.gripper_plots import plot_grasp
 from admittance.diagrams.views.gripper_replay import write_grasp_meshcat_replay
 from admittance.diagrams.views.plots import plot_errors, plot_force, plot_reference
 from admittance.diagrams.views.replay import write_meshcat_replay
 from admittance.diagrams.views.spatial_arm import plot_spatial
+from admittance.diagrams.views.spatial_replay import write_spatial_meshcat_replay
 
 __all__ = ["ARM_FIGURES", "GRASP_FIGURES", "SPATIAL_FIGURES", "result_figures", "write_replay"]
 
@@ -47,5 +47,5 @@ def write_replay(result, path: str | os.PathLike) -> Path:
     if isinstance(result, GraspResult):
         return write_grasp_meshcat_replay(result, path)
     if isinstance(result, SpatialResult):
-        raise ScenarioError("--meshcat-html: the spatial arm has no Meshcat replay yet")
+        return write_spatial_meshcat_replay(result, path)
     return write_meshcat_replay(result, path)

@@ -12,7 +12,6 @@ import os
 from pathlib import Path
 
 import numpy as np
-from pydrake.geometry import Rgba
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.framework import DiagramBuilder
 
@@ -20,11 +19,12 @@ from admittance.diagrams.robots.planar_gripper import AddHand
 from admittance.diagrams.run.planar_gripper import GraspResult
 from admittance.diagrams.scenario.planar_gripper import FINGERS
 from admittance.diagrams.views.replay import (
+    FORCE_COLOR,
     ForceArrow,
     Replay,
     arrow_scale,
-    frame_times,
     interpolate,
+    replay_frames,
     view_bounds,
 )
 
@@ -39,7 +39,6 @@ ARROW_MAX_LENGTH = 0.08
 # The overlays are drawn this far in front of the hand's plane (the camera looks along -x).
 OVERLAY_X = 0.06
 FORCE_PATH = "/replay/contact_force"
-_FORCE_COLOR = Rgba(0.85, 0.10, 0.10, 1.0)
 ARROW_SHAFT_WIDTH = 0.004
 ARROW_HEAD_LENGTH = 0.01
 ARROW_HEAD_RADIUS = 0.006
@@ -69,8 +68,7 @@ def write_grasp_meshcat_replay(result: GraspResult, path: str | os.PathLike) -> 
         The path written.
     """
     path = Path(path)
-    times = frame_times(result.time)
-    joint_positions = interpolate(result.time, result.joint_positions, times)
+    times, joint_positions = replay_frames(result)
     forces = np.maximum(
         np.column_stack([interpolate(result.time, result.force[:, i], times) for i in range(3)]),
         0.0,
@@ -92,7 +90,7 @@ def write_grasp_meshcat_replay(result: GraspResult, path: str | os.PathLike) -> 
                 ARROW_SHAFT_WIDTH,
                 ARROW_HEAD_LENGTH,
                 ARROW_HEAD_RADIUS,
-                _FORCE_COLOR,
+                FORCE_COLOR,
             )
         )
         arrows[-1].add_to(replay.meshcat)

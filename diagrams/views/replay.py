@@ -47,6 +47,7 @@ __all__ = [
     "arrow_scale",
     "frame_times",
     "interpolate",
+    "replay_frames",
     "staging_path",
     "view_bounds",
     "write_atomically",
@@ -81,9 +82,10 @@ FORCE_REFERENCE_PATH = "/replay/force_reference"
 COMMANDED_PATH = "/replay/commanded_position"
 
 _WALL_COLOR = Rgba(0.55, 0.42, 0.30, 0.75)
-_FORCE_COLOR = Rgba(0.85, 0.10, 0.10, 1.0)
-_REFERENCE_COLOR = Rgba(0.10, 0.45, 0.85, 0.9)
-_COMMANDED_COLOR = Rgba(0.10, 0.60, 0.20, 0.9)
+# Colours of the overlays every replay draws.
+FORCE_COLOR = Rgba(0.85, 0.10, 0.10, 1.0)
+REFERENCE_COLOR = Rgba(0.10, 0.45, 0.85, 0.9)
+COMMANDED_COLOR = Rgba(0.10, 0.60, 0.20, 0.9)
 
 _ARROW_SHAFT_WIDTH = 0.008
 _ARROW_HEAD_LENGTH = 0.02
@@ -130,6 +132,12 @@ def frame_times(time: np.ndarray) -> np.ndarray:
     first = math.ceil(float(time[0]) * REPLAY_FRAMES_PER_SECOND - 1e-9)
     last = math.floor(float(time[-1]) * REPLAY_FRAMES_PER_SECOND + 1e-9)
     return np.arange(first, max(last, first + 1) + 1) / REPLAY_FRAMES_PER_SECOND
+
+
+def replay_frames(result) -> tuple[np.ndarray, np.ndarray]:
+    """A run's replay frame times (:func:`frame_times`) and its joint positions there."""
+    times = frame_times(result.time)
+    return times, interpolate(result.time, result.joint_positions, times)
 
 
 def interpolate(time: np.ndarray, values: np.ndarray, at: np.ndarray) -> np.ndarray:
@@ -268,6 +276,15 @@ class Replay:
         write_atomically(path, self.meshcat.StaticHtml().encode("utf-8"))
         return path
 
+    def write_perspective(self, path: Path, camera_in_world, target_in_world) -> Path:
+        """Meshcat's perspective camera at `camera_in_world` looking at `target_in_world`
+        (world z up), and the recording, as one HTML file written atomically."""
+        self.meshcat.SetCameraPose(
+            np.asarray(camera_in_world, float), np.asarray(target_in_world, float)
+        )
+        write_atomically(path, self.meshcat.StaticHtml().encode("utf-8"))
+        return path
+
 
 def write_meshcat_replay(result: SimulationResult, path: str | os.PathLike) -> Path:
     """Writes a self-contained HTML replay of a finished run, viewable offline.
@@ -294,8 +311,7 @@ def write_meshcat_replay(result: SimulationResult, path: str | os.PathLike) -> P
     """
     path = Path(path)
     scenario = result.scenario
-    times = frame_times(result.time)
-    joint_positions = interpolate(result.time, result.joint_positions, times)
+    times, joint_positions = replay_frames(result)
     tip_xy = interpolate(result.time, result.pose[:, :2], times)
     wall_position = interpolate(result.time, result.wall_position, times)
     force = np.maximum(interpolate(result.time, result.force, times), 0.0)
@@ -324,11 +340,11 @@ def write_meshcat_replay(result: SimulationResult, path: str | os.PathLike) -> P
     meshcat.SetObject(WALL_PATH, Box(WALL_THICKNESS, wall_height, 0.02), _WALL_COLOR)
     # The arrow points along +x, the direction of the force the fingertip applies to the wall.
     arrow = ForceArrow(
-        FORCE_PATH, _ARROW_SHAFT_WIDTH, _ARROW_HEAD_LENGTH, _ARROW_HEAD_RADIUS, _FORCE_COLOR
+        FORCE_PATH, _ARROW_SHAFT_WIDTH, _ARROW_HEAD_LENGTH, _ARROW_HEAD_RADIUS, FORCE_COLOR
     )
     arrow.add_to(meshcat)
-    meshcat.SetObject(FORCE_REFERENCE_PATH, Box(0.003, 0.04, 0.003), _REFERENCE_COLOR)
-    meshcat.SetObject(COMMANDED_PATH, Sphere(0.005), _COMMANDED_COLOR)
+    meshcat.SetObject(FORCE_REFERENCE_PATH, Box(0.003, 0.04, 0.003), REFERENCE_COLOR)
+    meshcat.SetObject(COMMANDED_PATH, Sphere(0.005), COMMANDED_COLOR)
     wall_y = 0.5 * (ymin + ymax)
 
     def draw_overlays(animation, frame: int, index: int) -> None:
