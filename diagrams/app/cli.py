@@ -318,11 +318,15 @@ def _cmd_stability(args: argparse.Namespace, progress) -> int:
     from admittance.diagrams.loop.planar_arm import CheckScenarioStarts
     from admittance.diagrams.scenario.files import load_scenario
     from admittance.diagrams.scenario.planar_gripper import GraspScenario
+    from admittance.diagrams.scenario.spatial_arm import SpatialScenario
 
     scenario = load_scenario(args.scenario, args.overrides)
-    _refuse_spatial(scenario, args)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_stability"
     check_output_dir(out, overwrite=args.force)
+    if isinstance(scenario, SpatialScenario):
+        from admittance.diagrams.app.spatial_stability_report import spatial_stability_command
+
+        return spatial_stability_command(scenario, out, args, progress)
     if isinstance(scenario, GraspScenario):
         from admittance.diagrams.app.grasp_stability_report import grasp_stability_command
 
