@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from admittance.diagrams.analysis import spatial_arm as spatial_analysis
 from admittance.diagrams.analysis.spatial_arm import (
     NormalModel,
     analyse_spatial_stability,
@@ -131,3 +132,17 @@ def test_the_stability_command_reports_a_spatial_scenario(tmp_path, capsys):
     report = json.loads((out / "report.json").read_text())
     assert report["margin"] == pytest.approx(2.35, rel=0.1)
     assert "confirmation" not in report
+
+
+@needs_robots
+def test_a_wrist_sensor_is_refused_in_one_line_before_any_run(tmp_path, capsys, monkeypatch):
+    """The reduced model has no states for the wrist sensor's hold and low-pass: one line
+    naming the key, before the follow's 15 s run."""
+
+    def no_run(*args, **kwargs):
+        raise AssertionError("the scenario was run before the refusal")
+
+    monkeypatch.setattr(spatial_analysis, "run_spatial", no_run)
+    assert main(["stability", "panda_surface_follow", "--out", str(tmp_path / "x")]) != 0
+    error = capsys.readouterr().err.strip().splitlines()
+    assert len(error) == 1 and "sensor.kind" in error[0] and "ideal" in error[0]

@@ -57,6 +57,7 @@ __all__ = [
     "NormalModel",
     "analyse_spatial_stability",
     "apparent_mass",
+    "check_reducible",
     "confirm_spatial_critical_gamma",
     "normal_map",
     "normal_model",
@@ -148,8 +149,9 @@ def apparent_mass(plant, plant_context) -> dict:
     }
 
 
-def normal_model(scenario: SpatialScenario, positions) -> tuple[NormalModel, dict]:
-    """The reduced model of `scenario` with the arm at joint positions `positions`."""
+def check_reducible(scenario: SpatialScenario) -> None:
+    """Raises ScenarioError (one line) unless the reduced model covers `scenario`: the
+    paper's law with the ideal sensor."""
     if scenario.controller.kind != "optimal_admittance":
         raise ScenarioError(
             f"controller.kind: the stability analysis reads the paper's law "
@@ -159,6 +161,15 @@ def normal_model(scenario: SpatialScenario, positions) -> tuple[NormalModel, dic
         raise ScenarioError(
             f"sensor.kind: the reduced model reads the ideal sensor, got {scenario.sensor.kind!r}"
         )
+
+
+def normal_model(scenario: SpatialScenario, positions) -> tuple[NormalModel, dict]:
+    """The reduced model of `scenario` with the arm at joint positions `positions`.
+
+    Raises:
+        ScenarioError: the controller or the sensor is one the model does not cover.
+    """
+    check_reducible(scenario)
     loop = BuildSpatialLoop(scenario)
     plant = loop.plant
     context = plant.CreateDefaultContext()
@@ -248,6 +259,7 @@ def analyse_spatial_stability(
 ) -> dict:
     """The reduced loop at the contact equilibrium: modes, P > 0, the critical Gamma (and
     its confirmation by nonlinear runs). A JSON-serialisable dict (P as a list)."""
+    check_reducible(scenario)
     progress("the scenario's run to its contact equilibrium")
     nominal = run_spatial(scenario)
     settled = nominal.joint_positions[-1]

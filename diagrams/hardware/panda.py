@@ -62,7 +62,7 @@ def panda_urdf_path() -> Path:
         if path.is_file():
             return path
     raise FileNotFoundError(
-        "the Panda's URDF was not found: pip install \"optimal-admittance[robots]\" (the "
+        'the Panda\'s URDF was not found: pip install "optimal-admittance[robots]" (the '
         "example-robot-data distribution ships robots/panda_description/urdf/panda.urdf)"
     )
 
