@@ -56,7 +56,7 @@ from admittance.diagrams.run.planar_arm import run_scenario
 from admittance.diagrams.scenario.planar_arm import Scenario
 from admittance.diagrams.scenario.sections import LoggingConfig
 
-__all__ = ["run_benchmark"]
+__all__ = ["CallbackProfiler", "named_subsystems", "python_system_classes", "run_benchmark"]
 
 # Methods of the project's LeafSystems that Drake calls back: DoCalcTimeDerivatives and
 # other Do* overrides, output/cache calcs (_Calc*, _calc*) and discrete updates (*Update*).
@@ -138,7 +138,7 @@ def _advance_closed_loop(scenario: Scenario) -> _Run:
 # --- Python callbacks -------------------------------------------------------------------
 
 
-class _CallbackProfiler:
+class CallbackProfiler:
     """Counts and times the calcs of the project's LeafSystems.
 
     The classes of the Python systems in a diagram are patched (before the systems are
@@ -202,7 +202,7 @@ class _CallbackProfiler:
         self._patched.clear()
 
 
-def _systems(diagram: Diagram, prefix: str = ""):
+def named_subsystems(diagram: Diagram, prefix: str = ""):
     """(name, system) of every system in `diagram`, inside its subdiagrams too.
 
     A system inside a subdiagram is named after both, e.g. ``cartesian_pid/law``.
@@ -211,25 +211,25 @@ def _systems(diagram: Diagram, prefix: str = ""):
         name = prefix + system.get_name()
         yield name, system
         if isinstance(system, Diagram):
-            yield from _systems(system, name + "/")
+            yield from named_subsystems(system, name + "/")
 
 
-def _python_system_classes(diagram: Diagram) -> set[type]:
+def python_system_classes(diagram: Diagram) -> set[type]:
     return {
         type(system)
-        for _, system in _systems(diagram)
+        for _, system in named_subsystems(diagram)
         if not type(system).__module__.startswith("pydrake")
     }
 
 
-def _profile_callbacks(scenario: Scenario) -> tuple[_Run, _CallbackProfiler, dict[int, str]]:
+def _profile_callbacks(scenario: Scenario) -> tuple[_Run, CallbackProfiler, dict[int, str]]:
     """One closed-loop run with every Python calc counted and timed."""
-    classes = _python_system_classes(BuildClosedLoop(scenario).diagram)
-    profiler = _CallbackProfiler()
+    classes = python_system_classes(BuildClosedLoop(scenario).diagram)
+    profiler = CallbackProfiler()
     profiler.patch(classes)
     try:
         loop = BuildClosedLoop(scenario)
-        names = {id(system): name for name, system in _systems(loop.diagram)}
+        names = {id(system): name for name, system in named_subsystems(loop.diagram)}
         run = _advance(loop.diagram, scenario, lambda context: SetInitialConditions(loop, context))
     finally:
         profiler.restore()

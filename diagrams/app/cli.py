@@ -87,6 +87,15 @@ def _arm_scenario(args: argparse.Namespace):
     return scenario
 
 
+def _spatial_scenario(args: argparse.Namespace):
+    """The spatial-arm scenario of `args`, or None for any other kind."""
+    from admittance.diagrams.scenario.files import load_scenario
+    from admittance.diagrams.scenario.spatial_arm import SpatialScenario
+
+    scenario = load_scenario(args.scenario, args.overrides)
+    return scenario if isinstance(scenario, SpatialScenario) else None
+
+
 def _refuse_spatial(scenario, args: argparse.Namespace) -> None:
     """One line for a spatial-arm scenario given to a command that does not run one."""
     from admittance.diagrams.scenario.schema import ScenarioError
@@ -95,7 +104,8 @@ def _refuse_spatial(scenario, args: argparse.Namespace) -> None:
     if isinstance(scenario, SpatialScenario):
         raise ScenarioError(
             f"scenario: '{args.scenario}' is a spatial-arm scenario (kind: spatial); "
-            f"`admittance {args.command}` does not run one yet (spatial arms: simulate)"
+            f"`admittance {args.command}` does not run one yet (spatial arms: simulate, "
+            "bench, stability)"
         )
 
 
@@ -174,6 +184,11 @@ def _cmd_bench(args: argparse.Namespace, progress) -> int:
             f"--repeat {args.repeat}: must be an integer in [1, {MAX_REPEAT}] (each is a "
             "whole simulation)"
         )
+    spatial = _spatial_scenario(args)
+    if spatial is not None:
+        from admittance.diagrams.app.spatial_bench import spatial_bench_command
+
+        return spatial_bench_command(spatial, args, progress)
     scenario = _arm_scenario(args)
     before = None
     if args.before:
@@ -299,11 +314,15 @@ def _cmd_stability(args: argparse.Namespace, progress) -> int:
     from admittance.diagrams.loop.planar_arm import CheckScenarioStarts
     from admittance.diagrams.scenario.files import load_scenario
     from admittance.diagrams.scenario.planar_gripper import GraspScenario
+    from admittance.diagrams.scenario.spatial_arm import SpatialScenario
 
     scenario = load_scenario(args.scenario, args.overrides)
-    _refuse_spatial(scenario, args)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_stability"
     check_output_dir(out, overwrite=args.force)
+    if isinstance(scenario, SpatialScenario):
+        from admittance.diagrams.app.spatial_stability_report import spatial_stability_command
+
+        return spatial_stability_command(scenario, out, args, progress)
     if isinstance(scenario, GraspScenario):
         from admittance.diagrams.app.grasp_stability_report import grasp_stability_command
 

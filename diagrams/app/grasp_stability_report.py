@@ -21,7 +21,9 @@ __all__ = [
     "analyse_grasp_stability",
     "format_grasp_report",
     "grasp_stability_command",
+    "unit_circle_figure",
     "write_grasp_report",
+    "write_sampled_report",
 ]
 
 
@@ -124,8 +126,9 @@ def format_grasp_report(summary: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _eigenvalue_figure(summary: dict):
-    eigenvalues = np.array(summary["modes"]["eigenvalues"])
+def unit_circle_figure(eigenvalues, title: str):
+    """A sampled loop's eigenvalues (rows of [Re z, Im z]) against the unit circle."""
+    eigenvalues = np.array(eigenvalues)
     figure, ax = plt.subplots(figsize=(5, 5))
     angle = np.linspace(0, 2 * np.pi, 400)
     ax.plot(np.cos(angle), np.sin(angle), "k-", lw=0.8, label="unit circle")
@@ -133,19 +136,33 @@ def _eigenvalue_figure(summary: dict):
     ax.set_aspect("equal")
     ax.set_xlabel("Re z")
     ax.set_ylabel("Im z")
-    ax.set_title("the sampled hand's eigenvalues at the held grasp")
+    ax.set_title(title)
     ax.grid(True, alpha=0.3)
     ax.legend(loc="lower left")
     return figure
 
 
-def write_grasp_report(summary: dict, out_dir: str | Path, overwrite: bool = True) -> ResultFolder:
-    """Writes report.json, report.txt and eigenvalues.png atomically."""
+def write_sampled_report(
+    summary: dict, out_dir: str | Path, text: str, title: str, overwrite: bool = True
+) -> ResultFolder:
+    """Writes report.json, report.txt (`text`) and eigenvalues.png (`title`) atomically."""
     with result_folder(out_dir, overwrite=overwrite) as folder:
         folder.write_json("report.json", summary)
-        folder.write_text("report.txt", format_grasp_report(summary))
-        folder.write_figure("eigenvalues.png", _eigenvalue_figure(summary), dpi=100)
+        folder.write_text("report.txt", text)
+        figure = unit_circle_figure(summary["modes"]["eigenvalues"], title)
+        folder.write_figure("eigenvalues.png", figure, dpi=100)
     return folder
+
+
+def write_grasp_report(summary: dict, out_dir: str | Path, overwrite: bool = True) -> ResultFolder:
+    """Writes report.json, report.txt and eigenvalues.png atomically."""
+    return write_sampled_report(
+        summary,
+        out_dir,
+        format_grasp_report(summary),
+        "the sampled hand's eigenvalues at the held grasp",
+        overwrite=overwrite,
+    )
 
 
 def grasp_stability_command(scenario: GraspScenario, out: Path, args, progress) -> int:
