@@ -52,6 +52,7 @@ from admittance.diagrams.run.engine import SimulationDivergedError
 from admittance.diagrams.run.spatial_arm import SpatialResult, run_spatial
 from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.diagrams.scenario.spatial_arm import SpatialScenario
+from admittance.systems import contact_model
 
 __all__ = [
     "NormalModel",
@@ -139,13 +140,12 @@ def apparent_mass(plant, plant_context) -> dict:
     J = plant.CalcJacobianSpatialVelocity(
         plant_context, JacobianWrtVariable.kV, tip, np.zeros(3), frame_E, frame_E
     )
-    inverse_mass = np.linalg.inv(plant.CalcMassMatrix(plant_context))
+    mass_matrix = plant.CalcMassMatrix(plant_context)
     row = 3 + NORMAL_AXIS  # spatial velocity rows: [w; v]
-    Lambda = np.linalg.inv(J @ inverse_mass @ J.T)
-    along = J[row]
+    Lambda = np.linalg.inv(J @ np.linalg.solve(mass_matrix, J.T))
     return {
         "held": float(Lambda[row, row]),
-        "free": float(1.0 / (along @ inverse_mass @ along)),
+        "free": contact_model.apparent_mass(mass_matrix, J[row]),
     }
 
 
