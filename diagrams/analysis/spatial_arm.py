@@ -1,12 +1,13 @@
-"""Stability of the spatial arm's force loop: a reduced model along the normal, sampled.
+"""Stability of the spatial arm's force loop: a reduced model along the normal, sampled,
+checked against the whole loop linearized through AutoDiffXd.
 
-Drake's Linearize cannot take the spatial loop: its plant is discrete (SAP, ``lagged``
-point contact; the bare plant does convert to AutoDiffXd and steps in it), but the loop's
-TableForce reads the contact results in a float-only LeafSystem, so the diagram does not
-convert, and Linearize refuses a discrete MultibodyPlant's sampled output ports anyway. The
-loop is therefore reduced to the normal, as diagrams/analysis/stability.py reads the
-paper's arm, at the loop's CONTACT EQUILIBRIUM (the state at the end of the scenario's own
-run: the tool pressing with Fr, at rest):
+The whole loop (diagrams/analysis/spatial_step_map.py: seven joints, the contact engine,
+the 6-D PID and the law, 34 states for the Panda) is the reference: one step of the
+diagram differentiated by AutoDiffXd at the contact equilibrium, its critical Gamma
+confirmed by nonlinear runs started at rest. The reduced model reads the loop along the
+normal, as diagrams/analysis/stability.py reads the paper's arm, at the loop's CONTACT
+EQUILIBRIUM (the state at the end of the scenario's own run: the tool pressing with Fr, at
+rest), so that its numbers can be read by hand:
 
 * the arm's APPARENT MASS along the normal, m = Lambda_zz, Lambda = (J M^-1 J^T)^-1 with J
   the tool tip's 6 x n Jacobian in the control frame (the five other axes held by the PID);
@@ -41,6 +42,11 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.multibody.tree import JacobianWrtVariable
 
+from admittance.diagrams.analysis.spatial_step_map import (
+    confirm_loop_critical_gamma,
+    loop_critical_gamma,
+    loop_step_map,
+)
 from admittance.diagrams.analysis.stability import (
     critical_gain,
     lyapunov_certificate,
@@ -65,6 +71,7 @@ __all__ = [
     "routh_critical_gamma",
     "spatial_critical_gamma",
     "state_names",
+    "whole_loop_summary",
 ]
 
 #: The reduced state, in order.
@@ -263,6 +270,8 @@ def analyse_spatial_stability(
     progress("the scenario's run to its contact equilibrium")
     nominal = run_spatial(scenario)
     settled = nominal.joint_positions[-1]
+    progress("the whole loop's step linearized through AutoDiffXd")
+    whole = whole_loop_summary(scenario, confirm=confirm)
     model, masses = normal_model(scenario, settled)
     A = normal_map(model)
     modes = modal_summary(A, period=model.period)
@@ -289,7 +298,35 @@ def analyse_spatial_stability(
         "margin": critical / model.gamma if critical else math.inf,
         "continuous_critical_gamma": routh_critical_gamma(model),
     }
+    summary["whole_loop"] = whole
     if confirm and critical is not None:
         progress("nonlinear runs at 0.8 and 1.25 x the critical Gamma")
         summary["confirmation"] = confirm_spatial_critical_gamma(scenario, critical)
     return summary
+
+
+def whole_loop_summary(scenario: SpatialScenario, *, confirm: bool = True) -> dict:
+    """The whole loop's one-step map at its equilibrium (spatial_step_map): its size, the
+    states left out, its modes, P > 0, its critical Gamma and (with `confirm`) the local
+    nonlinear runs at 0.95 and 1.1 x that Gamma. JSON-serialisable."""
+    step_map = loop_step_map(scenario)
+    modes = modal_summary(step_map.A, period=step_map.period)
+    certificate = lyapunov_certificate(step_map.A, discrete=True)
+    certificate.pop("P", None)
+    gamma = scenario.admittance.gamma
+    critical = loop_critical_gamma(scenario, step_map, 0.5 * gamma, 20.0 * gamma)
+    whole = {
+        "states": len(step_map.names),
+        "left_out": step_map.left_out,
+        "fixed_point_residual": step_map.residual,
+        "spectral_radius": modes["spectral_radius"],
+        "stable": modes["stable"],
+        "lyapunov": certificate,
+        "critical_gamma": critical,
+        "margin": critical / gamma if critical else math.inf,
+    }
+    if confirm and critical is not None:
+        whole["confirmation"] = confirm_loop_critical_gamma(
+            scenario, step_map, critical, factors=(0.95, 1.1)
+        )
+    return whole
