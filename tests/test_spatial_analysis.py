@@ -167,8 +167,9 @@ def test_the_autodiff_step_is_the_loops_step_and_its_gradient_the_differences(pr
     """One step of the converted diagram from the equilibrium gives the equilibrium back
     (the fixed point the double loop found, to 1e-9 of max |x|), and the gradient's
     spectral radius is the central differences' of the double diagram's step (relative
-    step 1e-5, between the differences' truncation and the contact solver's tolerance:
-    measured 0.998847 by differences, 0.998851 by AutoDiffXd)."""
+    step 1e-5, between the differences' truncation and the contact solver's tolerance,
+    whose noise makes smaller steps wander: measured 0.998847 by differences, 0.998849
+    by AutoDiffXd)."""
     step_map = press_step_map
     assert step_map.residual < 1e-9
     assert step_map.left_out == ["cartesian_pid.0[2]"]  # the z integral: Ki_z = 0
@@ -180,7 +181,7 @@ def test_the_autodiff_step_is_the_loops_step_and_its_gradient_the_differences(pr
     sizes = [context.get_discrete_state(i).size() for i in range(groups)]
     names = [n for n in loop.plant.GetStateNames(False)]
     x0 = np.concatenate([context.get_discrete_state(i).CopyToVector() for i in range(groups)])
-    kept = [i for i in range(x0.size) if i != len(names) + 1 + 2]  # the PID's z integral
+    kept = [i for i in range(x0.size) if i != len(names) + 2]  # the PID's z integral
 
     def step(x):
         work.SetTimeStateAndParametersFrom(context)
@@ -204,19 +205,18 @@ def test_the_autodiff_step_is_the_loops_step_and_its_gradient_the_differences(pr
 
 @needs_robots
 def test_the_whole_loop_bounds_gamma_where_the_nonlinear_loop_does(press_step_map):
-    """The whole loop's critical Gamma lies within 15 % of the reduced model's (two models
-    of one loop: measured 1.522e-5 against 1.411e-5, the reduced one conservative), P > 0
-    at the scenario's Gamma, and the loop `simulate` runs, started at rest with Xr stepped
-    0.1 mm, agrees within 10 %: the disturbance decays at 0.95 x (0.227 N over the first
-    half second, 0.0036 N over the last, measured) and grows at 1.1 x (0.49 N, then 9.4 N
-    over 4 s; at 1.05 x it still decays, slowly: 0.22 then 0.11 N)."""
+    """The whole loop's critical Gamma lies 0-20 % above the reduced model's (two models
+    of one loop: measured 1.608e-5 against 1.411e-5, the reduced one conservative), P > 0
+    at the scenario's Gamma, and the nonlinear loop started at rest with Xr stepped 0.1 mm
+    agrees: the disturbance decays at 0.95 x (0.225 N over the first half second, 0.027 N
+    over the last, measured) and grows at 1.05 x (0.32 N, then 2.1 N)."""
     scenario = load_scenario("panda_surface_press")
     step_map = press_step_map
     assert lyapunov_certificate(step_map.A, discrete=True)["positive_definite"]
     reduced = spatial_critical_gamma(PRESS)
     critical = loop_critical_gamma(scenario, step_map, 3e-6, 1e-4)
-    assert reduced <= critical <= 1.15 * reduced
-    below, above = confirm_loop_critical_gamma(scenario, step_map, critical, (0.95, 1.1))
+    assert reduced <= critical <= 1.2 * reduced
+    below, above = confirm_loop_critical_gamma(scenario, step_map, critical, (0.95, 1.05))
     assert (
         below["stable"] and below["amplitude_last_quarter"] < 0.3 * below["amplitude_first_quarter"]
     )

@@ -27,7 +27,6 @@ from pydrake.systems.primitives import (
     RandomSource,
     TrajectorySource,
     VectorLogSink,
-    ZeroOrderHold,
 )
 from pydrake.trajectories import PiecewisePolynomial
 
@@ -152,20 +151,14 @@ def spatial_force_reference(scenario: SpatialScenario) -> PiecewisePolynomial:
 def BuildSpatialLoop(scenario: SpatialScenario, *, analysis: bool = False) -> SpatialLoop:
     """Wires the arm, its tool, the table and the tool tip's force loop for `scenario`.
 
-    With `analysis`, the loop the linearization steps: its noise held at zero, no loggers,
-    and no state outside its vectors: the plant computes its contact results from its
-    state, and a zero-order hold at time_step holds them for one step, so the law reads,
-    as with Drake's sampled output ports, the force of the step that just ended, that
-    memory now a state. (Its trajectories are not bit-identical to the simulated loop's:
-    through the impact they part by some newtons; at rest they agree.)
+    With `analysis`, the loop the linearization steps: the same loop, its noise held at
+    zero and without loggers.
 
     Raises:
         ScenarioError: the model cannot be loaded or a frame is missing (one line).
     """
     builder = DiagramBuilder()
-    plant, scene_graph, geometry = AddSpatialArm(
-        builder, scenario, sampled_output_ports=not analysis
-    )
+    plant, scene_graph, geometry = AddSpatialArm(builder, scenario)
     initial_positions = _initial_positions(scenario, plant, geometry)
     point = spatial_point(scenario, plant, initial_positions)
 
@@ -184,13 +177,9 @@ def BuildSpatialLoop(scenario: SpatialScenario, *, analysis: bool = False) -> Sp
     split = builder.AddSystem(Demultiplexer([SIZE, SIZE]))
     split.set_name("plan_split")
     builder.Connect(plan.get_output_port(), split.get_input_port())
-    true_force = table_force.contact_force_output
-    if analysis:
-        hold = builder.AddSystem(ZeroOrderHold(scenario.time_step, 1))
-        hold.set_name("last_step_force")
-        builder.Connect(true_force, hold.get_input_port())
-        true_force = hold.get_output_port()
-    reading = AddSensorChain(builder, point, true_force, plant=plant, noise=not analysis)
+    reading = AddSensorChain(
+        builder, point, table_force.contact_force_output, plant=plant, noise=not analysis
+    )
     kinematics = AddPointKinematics(builder, plant, point)
     pid = AddPointPid(builder, plant, point, kinematics, split.get_output_port(1))
     builder.Connect(pid.actuation_output, plant.get_actuation_input_port())

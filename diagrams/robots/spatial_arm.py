@@ -382,15 +382,8 @@ def _add_table(plant: MultibodyPlant, scenario: SpatialScenario, X_WS: RigidTran
     plant.RegisterVisualGeometry(body, RigidTransform(), box, "table_visual", [0.5, 0.4, 0.3, 0.6])
 
 
-def AddSpatialArm(
-    builder: DiagramBuilder, scenario: SpatialScenario, *, sampled_output_ports: bool = True
-):
+def AddSpatialArm(builder: DiagramBuilder, scenario: SpatialScenario):
     """Adds the arm, its tool, the table and the control frame as a discrete plant.
-
-    Its output ports report the last step's results (Drake's sampled output ports) unless
-    `sampled_output_ports` is False: then they are computed from the state (contact
-    results: the step's about to be taken), and the plant holds no memory of its last step
-    outside its state vector (what a linearization by steps needs).
 
     Returns:
         (plant, scene_graph, geometry), the plant finalized.
@@ -403,7 +396,6 @@ def AddSpatialArm(
         contact_model="point",
         discrete_contact_approximation="lagged",
         stiction_tolerance=scenario.surface.stiction_tolerance,
-        use_sampled_output_ports=sampled_output_ports,
     )
     plant, scene_graph = AddMultibodyPlant(config, builder)
     plant.set_name("plant")
