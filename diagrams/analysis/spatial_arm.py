@@ -218,14 +218,20 @@ def _amplitude(result: SpatialResult, start: float, end: float) -> float:
 def confirm_spatial_critical_gamma(
     scenario: SpatialScenario, critical: float, factors=(0.8, 1.25)
 ) -> list[dict]:
-    """The scenario's nonlinear runs at factor x the critical Gamma.
+    """The scenario's nonlinear runs at factor x the critical Gamma, from its start.
 
     A run is STABLE when the force error's amplitude over its last second is under 5 % of
     Fr and below that over the second before (the oscillation decays; or under 0.1 % of
     Fr), with no contact lost in the last second; otherwise (diverged, growing, or a
-    limit cycle that loses contact) it is unstable.
+    limit cycle that loses contact) it is unstable. A scenario with a slide runs as a
+    press (no slide, 3 s past the slide's start): the slide's own disturbance is not
+    the loop's instability.
     """
     outcomes = []
+    if scenario.trajectory.slide_distance > 0:
+        scenario = copy.deepcopy(scenario)
+        scenario.trajectory.slide_distance = 0.0
+        scenario.duration = scenario.slide_start + 3.0
     end = scenario.duration
     for factor in factors:
         gamma = factor * critical
