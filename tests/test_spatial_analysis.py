@@ -223,3 +223,19 @@ def test_the_whole_loop_bounds_gamma_where_the_nonlinear_loop_does(press_step_ma
     assert (
         not above["stable"] and above["amplitude_last_quarter"] > above["amplitude_first_quarter"]
     )
+
+
+@needs_robots
+def test_an_unstable_gamma_is_analysed_not_refused(tmp_path):
+    """Gamma = 2e-5 is past the critical Gamma: the press does not come to rest, but the
+    equilibrium does not depend on Gamma, so it is found at a quarter of it and carried
+    over. The map is unstable (radius > 1: measured 1.0057), no P > 0, and its critical
+    Gamma is the one the scenario's own Gamma gives (1.608e-5, measured at 6e-6 above;
+    1 % margin for the bisection's tolerance)."""
+    out = tmp_path / "stability"
+    argv = ["stability", "panda_surface_press", "--quick", "--out", str(out)]
+    assert main([*argv, "--set", "admittance.gamma=2e-5"]) == 0
+    whole = json.loads((out / "report.json").read_text())["whole_loop"]
+    assert not whole["stable"] and whole["spectral_radius"] > 1.0
+    assert not whole["lyapunov"]["positive_definite"]
+    assert whole["critical_gamma"] == pytest.approx(1.608e-5, rel=0.01)

@@ -43,7 +43,9 @@ import numpy as np
 from pydrake.multibody.tree import JacobianWrtVariable
 
 from admittance.diagrams.analysis.spatial_step_map import (
+    LoopStepMap,
     confirm_loop_critical_gamma,
+    equilibrium_force,
     loop_critical_gamma,
     loop_step_map,
 )
@@ -274,10 +276,11 @@ def analyse_spatial_stability(
     its confirmation by nonlinear runs). A JSON-serialisable dict (P as a list)."""
     check_reducible(scenario)
     progress("the scenario's run to its contact equilibrium")
-    nominal = run_spatial(scenario)
-    settled = nominal.joint_positions[-1]
+    step_map = loop_step_map(scenario)
+    plant = step_map.loop.plant
+    settled = plant.GetPositions(plant.GetMyContextFromRoot(step_map.context))
     progress("the whole loop's step linearized through AutoDiffXd")
-    whole = whole_loop_summary(scenario, confirm=confirm)
+    whole = whole_loop_summary(scenario, step_map, confirm=confirm)
     model, masses = normal_model(scenario, settled)
     A = normal_map(model)
     modes = modal_summary(A, period=model.period)
@@ -291,7 +294,7 @@ def analyse_spatial_stability(
         "period": model.period,
         "states": state_names(model),
         "equilibrium": {
-            "force": float(nominal.force[-1]),
+            "force": equilibrium_force(step_map),
             "force_reference": scenario.force_reference,
             "joint_positions": settled.tolist(),
         },
@@ -311,16 +314,18 @@ def analyse_spatial_stability(
     return summary
 
 
-def whole_loop_summary(scenario: SpatialScenario, *, confirm: bool = True) -> dict:
-    """The whole loop's one-step map at its equilibrium (spatial_step_map): its size, the
-    states left out, its modes, P > 0, its critical Gamma and (with `confirm`) the local
-    nonlinear runs at 0.95 and 1.05 x that Gamma. JSON-serialisable."""
-    step_map = loop_step_map(scenario)
+def whole_loop_summary(
+    scenario: SpatialScenario, step_map: LoopStepMap | None = None, *, confirm: bool = True
+) -> dict:
+    """The whole loop's one-step map at its equilibrium (spatial_step_map; `step_map` if
+    given): its size, the states left out, its modes, P > 0, its critical Gamma and (with
+    `confirm`) the local nonlinear runs at 0.95 and 1.05 x that Gamma. JSON-serialisable."""
+    step_map = step_map if step_map is not None else loop_step_map(scenario)
     modes = modal_summary(step_map.A, period=step_map.period)
     certificate = lyapunov_certificate(step_map.A, discrete=True)
     certificate.pop("P", None)
     gamma = scenario.admittance.gamma
-    critical = loop_critical_gamma(scenario, step_map, 0.5 * gamma, 20.0 * gamma)
+    critical = loop_critical_gamma(scenario, step_map, 0.01 * gamma, 20.0 * gamma)
     whole = {
         "states": len(step_map.names),
         "left_out": step_map.left_out,

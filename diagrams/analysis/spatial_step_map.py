@@ -52,6 +52,7 @@ from admittance.diagrams.scenario.spatial_arm import SpatialScenario
 __all__ = [
     "LoopStepMap",
     "confirm_loop_critical_gamma",
+    "equilibrium_force",
     "loop_step_map",
     "loop_critical_gamma",
     "settle_spatial_loop",
@@ -123,14 +124,56 @@ class _Stepper:
         return ExtractValue(following).ravel(), ExtractGradient(following)
 
 
+def _with_gamma(scenario: SpatialScenario, gamma: float) -> SpatialScenario:
+    varied = copy.deepcopy(scenario)
+    varied.admittance.gamma = gamma
+    return varied
+
+
+def _at_rest(loop: SpatialLoop, context: Context, scenario: SpatialScenario) -> bool:
+    """The arm still (joint speeds under 1e-3 rad/s) and pressing Fr (within 1 %)."""
+    plant = loop.plant
+    speeds = plant.GetVelocities(plant.GetMyContextFromRoot(context))
+    table = loop.table_force
+    force = table.contact_force_output.Eval(table.GetMyContextFromRoot(context))[0]
+    return bool(
+        np.all(np.isfinite(speeds))
+        and np.max(np.abs(speeds)) < 1e-3
+        and abs(force - scenario.force_reference) < 0.01 * scenario.force_reference
+    )
+
+
 def settle_spatial_loop(scenario: SpatialScenario) -> tuple[SpatialLoop, Context]:
-    """The analysis loop of `scenario` run from its start to its end (the press holds its
-    plan and Fr from the press's start on): the context near the contact equilibrium."""
-    loop = BuildSpatialLoop(scenario, analysis=True)
-    context = loop.diagram.CreateDefaultContext()
-    SetSpatialInitialConditions(loop, context)
-    Simulator(loop.diagram, context).AdvanceTo(scenario.duration)
-    return loop, context
+    """The analysis loop of `scenario` near its contact equilibrium: the scenario run from
+    its start to its end (the press holds its plan and Fr from the press's start on).
+
+    The equilibrium does not depend on Gamma (F = Fr, the same Xr), so a run that does
+    not come to rest (a Gamma past the critical one, whose linearization is wanted all
+    the more) is run again at a quarter of its Gamma, and again, up to 1/1024, and its
+    state carried to the scenario's Gamma.
+
+    Raises:
+        ScenarioError: no run comes to rest in contact.
+    """
+    gamma = scenario.admittance.gamma
+    for divisor in (1, 4, 16, 64, 256, 1024):
+        trial = _with_gamma(scenario, gamma / divisor)
+        loop = BuildSpatialLoop(trial, analysis=True)
+        context = loop.diagram.CreateDefaultContext()
+        SetSpatialInitialConditions(loop, context)
+        try:
+            Simulator(loop.diagram, context).AdvanceTo(scenario.duration)
+        except RuntimeError:  # the contact solver gave up on a diverging run
+            continue
+        if _at_rest(loop, context, trial):
+            if divisor == 1:
+                return loop, context
+            return _transfer_state(loop, context, gamma / divisor, scenario, gamma)
+    raise ScenarioError(
+        f"scenario: the press does not come to rest in contact by duration = "
+        f"{scenario.duration:g} s, at admittance.gamma or down to 1/1024 of it: no "
+        "equilibrium to linearize at (a longer duration may let it settle)"
+    )
 
 
 def _feeds_nothing(A: np.ndarray) -> np.ndarray:
@@ -148,7 +191,7 @@ def loop_step_map(
     near it), polished by Newton steps on x = F(x) over the kept states.
 
     Raises:
-        ScenarioError: the run does not end at rest in contact (no equilibrium).
+        ScenarioError: no run comes to rest in contact, or Newton's steps do not converge.
     """
     loop, settled = start if start is not None else settle_spatial_loop(scenario)
     period = scenario.time_step
@@ -168,8 +211,8 @@ def loop_step_map(
     residual = float(np.max(np.abs((following - x)[kept])))
     if not math.isfinite(residual) or residual > 1e-6 * max(1.0, float(np.max(np.abs(x)))):
         raise ScenarioError(
-            f"scenario: the loop does not come to rest in contact (max |F(x) - x| = "
-            f"{residual:.3g} at the run's end): no equilibrium to linearize at"
+            f"scenario: Newton's steps found no contact equilibrium near the run's end (max "
+            f"|F(x) - x| = {residual:.3g}): nothing to linearize at"
         )
     equilibrium = settled.Clone()
     stepper.set_state(equilibrium, x)
@@ -185,39 +228,55 @@ def loop_step_map(
     )
 
 
-def _with_gamma(scenario: SpatialScenario, gamma: float) -> SpatialScenario:
-    varied = copy.deepcopy(scenario)
-    varied.admittance.gamma = gamma
-    return varied
-
-
-def _context_at_gamma(
-    equilibrium: LoopStepMap, scenario: SpatialScenario, gamma: float
+def _transfer_state(
+    source: SpatialLoop,
+    source_context: Context,
+    source_gamma: float,
+    scenario: SpatialScenario,
+    gamma: float,
 ) -> tuple[SpatialLoop, Context]:
-    """The analysis loop at `gamma` with the equilibrium's state: the same Xr, so the law's
-    integral z = Xr / (Gamma K) scales by Gamma_0 / Gamma (alpha's term is zero at rest)."""
+    """The analysis loop of `scenario` at `gamma` with the state of `source` (a loop at
+    `source_gamma`): the same Xr, so the law's integral z = Xr / (Gamma K) scales by
+    source_gamma / gamma (alpha's term is zero at rest)."""
     loop = BuildSpatialLoop(_with_gamma(scenario, gamma), analysis=True)
     # A context of another diagram: its time and each system's discrete states, not its
     # geometry (its own SceneGraph's ids) nor the plant's memory of its last step (which
     # its first step rewrites before anything reads it).
     context = loop.diagram.CreateDefaultContext()
-    context.SetTime(equilibrium.context.get_time())
-    source = equilibrium.loop.diagram
+    context.SetTime(source_context.get_time())
     for system in loop.diagram.GetSystems():
         target = system.GetMyMutableContextFromRoot(context)
-        if target.num_discrete_state_groups() == 0 or not source.HasSubsystemNamed(
+        if target.num_discrete_state_groups() == 0 or not source.diagram.HasSubsystemNamed(
             system.get_name()
         ):
             continue
-        held = source.GetSubsystemByName(system.get_name()).GetMyContextFromRoot(
-            equilibrium.context
+        held = source.diagram.GetSubsystemByName(system.get_name()).GetMyContextFromRoot(
+            source_context
         )
         for group in range(target.num_discrete_state_groups()):
             target.SetDiscreteState(group, held.get_discrete_state(group).CopyToVector())
     law_context = loop.admittance.GetMyMutableContextFromRoot(context)
     integral = law_context.get_discrete_state(0).CopyToVector()
-    law_context.SetDiscreteState(0, integral * scenario.admittance.gamma / gamma)
+    law_context.SetDiscreteState(0, integral * source_gamma / gamma)
     return loop, context
+
+
+def _context_at_gamma(
+    equilibrium: LoopStepMap, scenario: SpatialScenario, gamma: float
+) -> tuple[SpatialLoop, Context]:
+    """The analysis loop at `gamma` with the equilibrium's state (at the scenario's Gamma)."""
+    return _transfer_state(
+        equilibrium.loop, equilibrium.context, scenario.admittance.gamma, scenario, gamma
+    )
+
+
+def equilibrium_force(equilibrium: LoopStepMap) -> float:
+    """The force along the planned normal over one step from the equilibrium, N."""
+    context = equilibrium.context.Clone()
+    simulator = Simulator(equilibrium.loop.diagram, context)
+    simulator.AdvanceTo(context.get_time() + equilibrium.period)
+    table = equilibrium.loop.table_force
+    return float(table.contact_force_output.Eval(table.GetMyContextFromRoot(context))[0])
 
 
 def loop_critical_gamma(

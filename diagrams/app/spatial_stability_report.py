@@ -25,7 +25,8 @@ def format_spatial_report(summary: dict) -> str:
         f"Stability of spatial scenario {summary['scenario']}: the loop reduced to the normal, "
         f"sampled at h = {number(summary['period'], ' s')}, x = [{', '.join(summary['states'])}]",
         "",
-        f"Contact equilibrium (the scenario's run, at its end): F = "
+        f"Contact equilibrium (the scenario's run at its end; at a lower Gamma if it does not "
+        f"come to rest: the equilibrium does not depend on Gamma): F = "
         f"{number(equilibrium['force'], ' N', digits=4)} (Fr = "
         f"{number(equilibrium['force_reference'], ' N')})",
         f"  apparent mass along the normal: {number(masses['held'], ' kg', digits=3)} "
