@@ -92,6 +92,11 @@ def test_the_layer_keeps_a_fast_approach_into_a_higher_table_under_fmax():
     assert result.metrics["peak_force"] < FMAX
     # The press is made: the force reaches Fr = 10 N by the end (measured 10.0 N).
     assert result.force[-1] == pytest.approx(scenario.force_reference, abs=1.0)
+    # The monitor trusts the reading throughout (the ideal sensor, no fault), and the
+    # estimator finds the table's point-contact stiffness, surface.stiffness = 1e5 N/m
+    # (measured 9.70e4 N/m: the secant of the loading; 20 % for the contact's dissipation).
+    assert safety["detections"] == []
+    assert safety["final_stiffness_estimate"] == pytest.approx(scenario.surface.stiffness, rel=0.2)
 
 
 @pytest.mark.parametrize(

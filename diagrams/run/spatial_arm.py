@@ -19,8 +19,10 @@ apparent mass along the normal, the damper, the approach bound v_max, ...), the 
 speed along the normal at the last sample before the first contact
 (``first_contact_speed``, against ``approach_speed``), the largest force within
 FIRST_CONTACT_WINDOW of the first contact (``first_contact_peak_force``, against
-``max_force``), and the final gain scale; the timeseries gains ``force_observed`` (the
-momentum observer's force along the normal) and ``gain_scale``.
+``max_force``), each detection of the sensor monitor (time, kind), the final stiffness
+estimate and gain scale; the timeseries gains ``force_observed`` (the momentum observer's
+force along the normal), ``force_trusted``, ``stiffness_estimate``, ``gain_scale`` and one
+``fault_<kind>`` column per flag.
 
 The metrics every robot shares (``peak_force``, ``steady_state_force_error`` over the last
 second, ``rms_force_error`` from the end of the force ramp, ``first_contact_time``,
@@ -53,6 +55,7 @@ from admittance.diagrams.run.metrics import (
     until_mask,
 )
 from admittance.diagrams.scenario.spatial_arm import SPATIAL_COORDINATES, SpatialScenario
+from admittance.systems.fault_detector import FAULT_FLAGS
 from admittance.systems.spatial_kinematics import orientation_error
 
 __all__ = [
@@ -125,8 +128,12 @@ class SpatialResult(RunResult):
         columns["path_error"] = self.path_error
         columns["orientation_error"] = self.orientation_error
         if self.safety:
-            columns["force_observed"] = self.safety["observed_force"][:, 0]
-            columns["gain_scale"] = self.safety["gain_scale"][:, 0]
+            for name in ("observed", "trusted"):
+                columns[f"force_{name}"] = self.safety[f"{name}_force"][:, 0]
+            for name in ("stiffness_estimate", "gain_scale"):
+                columns[name] = self.safety[name][:, 0]
+            for column, kind in enumerate(FAULT_FLAGS):
+                columns[f"fault_{kind}"] = self.safety["fault_flags"][:, column]
         return columns
 
 
@@ -186,6 +193,13 @@ def spatial_safety_metrics(result: SpatialResult) -> dict:
         metrics["first_contact_speed"] = float(result.normal_speed[touching[0] - 1])
         metrics["first_contact_peak_force"] = float(np.max(force[window]))
     metrics.update(logs.get("first_contact", {}))
+    flags = logs["fault_flags"] > 0.5
+    rising = flags & ~np.vstack([np.zeros((1, flags.shape[1]), bool), flags[:-1]])
+    metrics["detections"] = [
+        {"time": float(result.time[row]), "kind": FAULT_FLAGS[column]}
+        for row, column in zip(*np.nonzero(rising), strict=True)
+    ]
+    metrics["final_stiffness_estimate"] = float(logs["stiffness_estimate"][-1, 0])
     metrics["final_gain_scale"] = float(logs["gain_scale"][-1, 0])
     return metrics
 
