@@ -239,3 +239,18 @@ def test_an_unstable_gamma_is_analysed_not_refused(tmp_path):
     assert not whole["stable"] and whole["spectral_radius"] > 1.0
     assert not whole["lyapunov"]["positive_definite"]
     assert whole["critical_gamma"] == pytest.approx(1.608e-5, rel=0.01)
+
+
+@needs_robots
+def test_the_safety_layer_is_refused_in_one_line_before_any_run(tmp_path, capsys, monkeypatch):
+    """The analysis reads the loop without the layer (its observer integrates between the
+    plant's steps, a state one step's map does not hold): one line naming the key."""
+
+    def no_run(*args, **kwargs):
+        raise AssertionError("the scenario was run before the refusal")
+
+    monkeypatch.setattr(spatial_analysis, "loop_step_map", no_run)
+    argv = ["stability", "panda_surface_press", "--set", "safety.enabled=true"]
+    assert main([*argv, "--out", str(tmp_path / "x")]) != 0
+    error = capsys.readouterr().err.strip().splitlines()
+    assert len(error) == 1 and "safety.enabled" in error[0]

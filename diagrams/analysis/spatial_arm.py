@@ -159,8 +159,8 @@ def apparent_mass(plant, plant_context) -> dict:
 
 
 def check_reducible(scenario: SpatialScenario) -> None:
-    """Raises ScenarioError (one line) unless the reduced model covers `scenario`: the
-    paper's law with the ideal sensor."""
+    """Raises ScenarioError (one line) unless the analysis covers `scenario`: the paper's
+    law with the ideal sensor, without the safety layer."""
     if scenario.controller.kind != "optimal_admittance":
         raise ScenarioError(
             f"controller.kind: the stability analysis reads the paper's law "
@@ -169,6 +169,11 @@ def check_reducible(scenario: SpatialScenario) -> None:
     if scenario.sensor.kind != "ideal":
         raise ScenarioError(
             f"sensor.kind: the reduced model reads the ideal sensor, got {scenario.sensor.kind!r}"
+        )
+    if scenario.safety.enabled:
+        raise ScenarioError(
+            "safety.enabled: the stability analysis reads the loop without the safety layer "
+            "(its observer integrates between the plant's steps); set it to false"
         )
 
 

@@ -31,12 +31,12 @@ from pydrake.systems.primitives import (
 from pydrake.trajectories import PiecewisePolynomial
 
 from admittance.diagrams.loop.point import (
-    AddForceLoop,
     AddLoggers,
     AddPointKinematics,
     AddPointPid,
     AddSensorChain,
 )
+from admittance.diagrams.loop.spatial_safety import AddSpatialForceLoop, SpatialSafetyLayer
 from admittance.diagrams.robots.spatial_arm import (
     NORMAL_AXIS,
     TABLE_BODY,
@@ -85,6 +85,8 @@ class SpatialLoop:
     initial_positions: np.ndarray
     random_sources: list[RandomSource] = field(default_factory=list)
     loggers: dict[str, VectorLogSink] = field(default_factory=dict)
+    # The safety layer at the tool tip (None unless safety.enabled).
+    safety: SpatialSafetyLayer | None = None
 
 
 def _hermite_row(breaks, positions, velocities) -> PiecewisePolynomial:
@@ -185,11 +187,14 @@ def BuildSpatialLoop(scenario: SpatialScenario, *, analysis: bool = False) -> Sp
     builder.Connect(pid.actuation_output, plant.get_actuation_input_port())
     reference = builder.AddSystem(TrajectorySource(spatial_force_reference(scenario)))
     reference.set_name("force_reference")
-    admittance = AddForceLoop(
+    admittance, safety = AddSpatialForceLoop(
         builder,
+        scenario,
         point,
         pid,
+        plant=plant,
         desired_position_output=split.get_output_port(0),
+        desired_velocity_output=split.get_output_port(1),
         desired_force_output=reference.get_output_port(),
         measured_force_output=reading.measured_force_output,
     )
@@ -205,6 +210,8 @@ def BuildSpatialLoop(scenario: SpatialScenario, *, analysis: bool = False) -> Sp
     }
     if admittance is not None:
         ports["reference_offset"] = admittance.reference_offset_output
+    if safety is not None:
+        ports.update(safety.log_ports())
     loggers = (
         {}
         if analysis
@@ -229,6 +236,7 @@ def BuildSpatialLoop(scenario: SpatialScenario, *, analysis: bool = False) -> Sp
         initial_positions=initial_positions,
         random_sources=reading.random_sources,
         loggers=loggers,
+        safety=safety,
     )
 
 
