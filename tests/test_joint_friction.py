@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from pydrake.systems.framework import DiagramBuilder
 
-from admittance.diagrams.loop.safety_layer import TOLERANCE_SHARE
+from admittance.diagrams.loop.layer_systems import TOLERANCE_SHARE
 from admittance.diagrams.robots.planar_arm import AddScenarioArm, SolvePlanarInverseKinematics
 from admittance.diagrams.run.planar_arm import run_scenario
 from admittance.diagrams.scenario.files import load_scenario

@@ -13,7 +13,8 @@ import math
 import numpy as np
 import pytest
 
-from admittance.diagrams.loop.safety_layer import STIFFER_FACTOR, stiffer_than_stated
+from admittance.diagrams.loop.layer_systems import STIFFER_FACTOR
+from admittance.diagrams.loop.safety_layer import stiffer_than_stated
 from admittance.diagrams.robots.planar_arm import SolvePlanarInverseKinematics
 from admittance.diagrams.run.planar_arm import run_scenario
 from admittance.diagrams.scenario.files import load_scenario

@@ -19,6 +19,14 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.systems.framework import Context, DiagramBuilder
 
+from admittance.diagrams.loop.layer_systems import (
+    CONTACT_NOISE_DEVIATIONS,
+    CONTACT_SHARE,
+    STIFFER_FACTOR,
+    AddLayerSystems,
+    LayerNumbers,
+    law_arguments,
+)
 from admittance.diagrams.robots.planar_arm import ArmModel, SolvePlanarInverseKinematics
 from admittance.diagrams.scenario.planar_arm import Scenario
 from admittance.diagrams.scenario.schema import ScenarioError
@@ -35,7 +43,6 @@ __all__ = [
     "AddSafetyLayer",
     "CapStepForSampledMonitor",
     "STOP_SPEED",
-    "STIFFER_FACTOR",
     "collision_reaction",
     "contact_force_threshold",
     "expected_noise",
@@ -52,25 +59,11 @@ __all__ = [
 
 # The wall normal in X = (x, y, theta).
 NORMAL_AXIS = 0
-# The force observer's bandwidth, 1/s: 10 ms, two ADC samples at the default 5 ms.
-OBSERVER_GAIN = 100.0
-# Contact: the trusted force above this share of Fr, or 5 noise deviations if more.
-CONTACT_SHARE = 0.1
-CONTACT_NOISE_DEVIATIONS = 5.0
-# The plausibility check's base tolerance: this share of Fr plus 6 noise deviations.
-TOLERANCE_SHARE = 0.2
-TOLERANCE_NOISE_DEVIATIONS = 6.0
-# The stiffness estimate updates once F - F_c is above this share of Fr.
-INFORMATIVE_SHARE = 0.2
 # After a collision the arm has stopped once the tip's speed stays below this, m/s, for
 # STOP_HOLD s: about half the approach bound v_max of the layer's arms (9.3-9.8 mm/s), a
 # speed at which a strike on a wall of Ke_max stays well under Fmax.
 STOP_SPEED = 5e-3
 STOP_HOLD = 0.05
-# A contact stiffer than stated (docs/safety.md, section 7): the estimate above this
-# factor times Ke_max. It starts at the prior Ke_max and rises only on a stiffer secant:
-# 1.07e6 N/m at most on the 1e6 N/m walls measured; 2 leaves room for the secant's noise.
-STIFFER_FACTOR = 2.0
 # A sampled PID's damper alone is stable while h max eig(J M^-1 J^T Kd) stays below this
 # (see sampled_damper_gain).
 SAMPLED_DAMPER_LIMIT = 2.0
@@ -203,94 +196,40 @@ def AddSafetyLayer(
     """
     frame = scenario.arm.fingertip_frame
     admittance, pid_config, safety = scenario.admittance, scenario.pid, scenario.safety
-    reference = scenario.force_reference
-    noise = expected_noise(scenario)
-    contact = contact_force_threshold(scenario)
     sensor = FlexiForceSensor(
         kind=scenario.sensor.kind, filter_cutoff_hz=scenario.sensor.filter_cutoff
     )
-    filter_time_constant = sensor.filter_time_constant if sensor.kind != "ideal" else 0.0
-
-    observer = builder.AddSystem(
-        ContactForceObserver(plant, frame_name=frame, gain=OBSERVER_GAIN, normal_axis=NORMAL_AXIS)
+    numbers = LayerNumbers(
+        force_reference=scenario.force_reference,
+        noise=expected_noise(scenario),
+        contact_force=contact_force_threshold(scenario),
+        reading_period=scenario.sensor.noise_period,
+        saturation_force=sensor.saturation_force,
+        max_stiffness=safety.max_stiffness,
+        frozen=analysis,
+        frozen_estimate=scenario.wall.stiffness if analysis else None,
+        law=law_arguments(
+            admittance,
+            safety,
+            kp=pid_config.kp[NORMAL_AXIS],
+            kd=pid_config.kd[NORMAL_AXIS],
+            max_force=admittance.max_force,
+            force_bound_gain=admittance.force_bound_gain,
+            filter_time_constant=sensor.filter_time_constant if sensor.kind != "ideal" else 0.0,
+            period=admittance.period,
+            latency=scenario.sensor.latency,
+            num_axes=3,
+        ),
     )
-    observer.set_name("contact_force_observer")
-    estimator = builder.AddSystem(
-        StiffnessEstimator(
-            plant,
-            frame_name=frame,
-            period=scenario.sensor.noise_period,
-            prior_stiffness=safety.max_stiffness,
-            contact_force=contact,
-            informative_force=INFORMATIVE_SHARE * reference,
-            normal_axis=NORMAL_AXIS,
-            frozen_estimate=scenario.wall.stiffness if analysis else None,
-            latch_stiffness=STIFFER_FACTOR * safety.max_stiffness,
-        )
-    )
-    estimator.set_name("stiffness_estimator")
-    detector = builder.AddSystem(
-        SensorFaultDetector(
-            plant,
-            frame_name=frame,
-            period=scenario.sensor.noise_period,
-            noise_std=noise,
-            saturation_force=sensor.saturation_force,
-            contact_force=contact,
-            force_tolerance=TOLERANCE_SHARE * reference + TOLERANCE_NOISE_DEVIATIONS * noise,
-            observer_gain=OBSERVER_GAIN,
-            normal_axis=NORMAL_AXIS,
-            frozen=analysis,
-        )
-    )
-    detector.set_name("sensor_fault_detector")
     # The law's model of the arm: the plant as built (reflected inertia included when the
     # scenario has it), without a payload the simulated arm carries (arm.payload_mass):
     # the layer knows of one only through safety.payload_mass.
     model = plant if scenario.arm.payload_mass == 0.0 else ArmModel(scenario.arm)
-    law = builder.AddSystem(
-        SafeAdmittance(
-            model,
-            frame_name=frame,
-            gamma=admittance.gamma,
-            alpha=admittance.alpha,
-            stiffness=pid_config.kp[NORMAL_AXIS],
-            pid_kp=pid_config.kp[NORMAL_AXIS],
-            pid_kd=pid_config.kd[NORMAL_AXIS],
-            max_force=admittance.max_force,
-            force_bound_gain=admittance.force_bound_gain,
-            max_push=admittance.max_push,
-            max_stiffness=safety.max_stiffness,
-            damping_ratio=safety.damping_ratio,
-            stability_margin=safety.stability_margin,
-            filter_time_constant=filter_time_constant,
-            contact_force=contact,
-            detection_delay=detector.detection_delay,
-            payload_mass=safety.payload_mass,
-            period=admittance.period,
-            latency=scenario.sensor.latency,
-            normal_axis=NORMAL_AXIS,
-            num_axes=3,
-            backoff_stiffness=STIFFER_FACTOR * safety.max_stiffness,
-        )
-    )
-    law.set_name("safe_admittance")
-
-    state = plant.get_state_output_port()
-    builder.Connect(state, observer.estimated_state_input)
-    builder.Connect(pid.actuation_output, observer.actuation_input)
-    builder.Connect(state, estimator.estimated_state_input)
-    builder.Connect(detector.trusted_force_output, estimator.measured_force_input)
-    builder.Connect(detector.sensor_fault_output, estimator.sensor_fault_input)
-    builder.Connect(observer.contact_force_output, detector.observed_force_input)
-    builder.Connect(estimator.stiffness_estimate_output, detector.stiffness_estimate_input)
-    builder.Connect(state, detector.estimated_state_input)
+    tip = dict(frame_name=frame, normal_axis=NORMAL_AXIS)
+    observer, detector, estimator, law = AddLayerSystems(builder, plant, model, pid, tip, numbers)
+    # The collision reflex: the observer's residual off the normal's direction.
     builder.Connect(observer.external_torque_output, detector.external_torque_input)
     builder.Connect(detector.collision_output, law.collision_input)
-    builder.Connect(detector.trusted_force_output, law.measured_force_input)
-    builder.Connect(detector.sensor_fault_output, law.sensor_fault_input)
-    builder.Connect(estimator.stiffness_estimate_output, law.stiffness_estimate_input)
-    builder.Connect(state, law.estimated_state_input)
     builder.Connect(trajectory.desired_velocity_output, law.desired_velocity_input)
     monitor = (
         None

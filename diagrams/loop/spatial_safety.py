@@ -27,6 +27,13 @@ from dataclasses import dataclass
 
 from pydrake.systems.framework import Context, DiagramBuilder
 
+from admittance.diagrams.loop.layer_systems import (
+    CONTACT_NOISE_DEVIATIONS,
+    CONTACT_SHARE,
+    AddLayerSystems,
+    LayerNumbers,
+    law_arguments,
+)
 from admittance.diagrams.loop.point import AddCommandedPosition, AddForceLoop
 from admittance.diagrams.robots.description import ForcePoint
 from admittance.diagrams.robots.spatial_arm import NORMAL_AXIS
@@ -38,30 +45,13 @@ from admittance.systems.stiffness_estimator import StiffnessEstimator
 
 __all__ = [
     "AddSpatialForceLoop",
-    "CONTACT_NOISE_DEVIATIONS",
-    "CONTACT_SHARE",
     "FORCE_BOUND_GAIN",
-    "OBSERVER_GAIN",
     "SpatialSafetyLayer",
     "spatial_contact_force_threshold",
 ]
 
-# The observer's bandwidth, 1/s (the planar arm's layer's).
-OBSERVER_GAIN = 100.0
-# Contact: the reading above this share of Fr, or 5 noise deviations if more (as the
-# planar arm's layer).
-CONTACT_SHARE = 0.1
-CONTACT_NOISE_DEVIATIONS = 5.0
 # mu of the force-bound penalty above (Fr + Fmax) / 2 (the planar scenario's default).
 FORCE_BOUND_GAIN = 4.0
-# The plausibility check's base tolerance: this share of Fr plus 6 noise deviations, and
-# the stiffness estimate's informative share of Fr (the planar arm's layer's).
-TOLERANCE_SHARE = 0.2
-TOLERANCE_NOISE_DEVIATIONS = 6.0
-INFORMATIVE_SHARE = 0.2
-# The estimate latches above this factor times Ke_max (a table stiffer than stated), and
-# the command then approaches at v_max (Fmax - Fr) / Fmax (docs/safety.md, section 7).
-STIFFER_FACTOR = 2.0
 # The wrist sensor model has no full scale: a saturation the monitor never reaches, N.
 NO_SATURATION = 1e9
 
@@ -159,78 +149,31 @@ def AddSpatialForceLoop(
         coordinates=point.coordinates,
         expressed_in=point.expressed_in,
     )
-    reference, noise = scenario.force_reference, _noise(scenario)
-    contact = spatial_contact_force_threshold(scenario)
-    reading_period = point.sensor.period or scenario.time_step
-    observer = builder.AddSystem(ContactForceObserver(plant, gain=OBSERVER_GAIN, **tip))
-    observer.set_name(point.system_name("contact_force_observer"))
-    detector = builder.AddSystem(
-        SensorFaultDetector(
-            plant,
-            period=reading_period,
-            noise_std=noise,
-            saturation_force=NO_SATURATION,
-            contact_force=contact,
-            force_tolerance=TOLERANCE_SHARE * reference + TOLERANCE_NOISE_DEVIATIONS * noise,
-            observer_gain=OBSERVER_GAIN,
-            **tip,
-        )
-    )
-    detector.set_name(point.system_name("sensor_fault_detector"))
-    estimator = builder.AddSystem(
-        StiffnessEstimator(
-            plant,
-            period=reading_period,
-            prior_stiffness=safety.max_stiffness,
-            contact_force=contact,
-            informative_force=INFORMATIVE_SHARE * reference,
-            latch_stiffness=STIFFER_FACTOR * safety.max_stiffness,
-            **tip,
-        )
-    )
-    estimator.set_name(point.system_name("stiffness_estimator"))
-    law = builder.AddSystem(
-        SafeAdmittance(
-            plant,
-            gamma=admittance.gamma,
-            alpha=admittance.alpha,
-            stiffness=point.kp[NORMAL_AXIS],
-            pid_kp=point.kp[NORMAL_AXIS],
-            pid_kd=point.kd[NORMAL_AXIS],
+    numbers = LayerNumbers(
+        force_reference=scenario.force_reference,
+        noise=_noise(scenario),
+        contact_force=spatial_contact_force_threshold(scenario),
+        reading_period=point.sensor.period or scenario.time_step,
+        saturation_force=NO_SATURATION,
+        max_stiffness=safety.max_stiffness,
+        law=law_arguments(
+            admittance,
+            safety,
+            kp=point.kp[NORMAL_AXIS],
+            kd=point.kd[NORMAL_AXIS],
             max_force=safety.max_force,
             force_bound_gain=FORCE_BOUND_GAIN,
-            max_push=admittance.max_push,
-            max_stiffness=safety.max_stiffness,
-            damping_ratio=safety.damping_ratio,
-            stability_margin=safety.stability_margin,
             filter_time_constant=_filter_time_constant(scenario),
-            contact_force=contact,
-            detection_delay=detector.detection_delay,
-            payload_mass=safety.payload_mass,
             period=point.law.period,
             latency=point.sensor.latency,
             num_axes=point.num_axes,
-            backoff_stiffness=STIFFER_FACTOR * safety.max_stiffness,
             held_axes=True,
-            **tip,
-        )
+        ),
     )
-    law.set_name(point.system_name("safe_admittance"))
-
-    state = plant.get_state_output_port()
-    builder.Connect(state, observer.estimated_state_input)
-    builder.Connect(pid.actuation_output, observer.actuation_input)
+    observer, detector, estimator, law = AddLayerSystems(
+        builder, plant, plant, pid, tip, numbers, name=point.system_name
+    )
     builder.Connect(measured_force_output, detector.measured_force_input)
-    builder.Connect(observer.contact_force_output, detector.observed_force_input)
-    builder.Connect(estimator.stiffness_estimate_output, detector.stiffness_estimate_input)
-    builder.Connect(state, detector.estimated_state_input)
-    builder.Connect(state, estimator.estimated_state_input)
-    builder.Connect(detector.trusted_force_output, estimator.measured_force_input)
-    builder.Connect(detector.sensor_fault_output, estimator.sensor_fault_input)
-    builder.Connect(state, law.estimated_state_input)
-    builder.Connect(detector.trusted_force_output, law.measured_force_input)
-    builder.Connect(detector.sensor_fault_output, law.sensor_fault_input)
-    builder.Connect(estimator.stiffness_estimate_output, law.stiffness_estimate_input)
     builder.Connect(desired_force_output, law.desired_force_input)
     builder.Connect(desired_position_output, law.desired_position_input)
     builder.Connect(desired_velocity_output, law.desired_velocity_input)
