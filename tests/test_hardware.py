@@ -333,6 +333,46 @@ def test_a_non_finite_or_stale_wrench_holds_the_law(fault):
     assert controller.law.offset - held == pytest.approx(STEP * -4.0, rel=1e-9)
 
 
+def test_the_gains_are_checked_again_at_the_rate_and_latency_measured():
+    """Once per second the controller checks its gains at the period and delay its cycles
+    measured (p99). Answering one status in three holds each command 3 ms: the wrist's
+    h lambda, 0.34 at 1 kHz, becomes 1.03, beyond the one-period delay's bound of 1
+    (tests/test_hardware_gains.py): the law holds its offset, logged. A latency of 4.5
+    periods makes the command 5 periods late, whose bound 2 sin(pi / 22) = 0.285 is below
+    0.34: held still. Answered within the period at 1 kHz: it resumes."""
+    clock = FakeClock()
+    lcm, config, controller, _ = _controller([], clock)
+    timing = controller.timing
+
+    def cycles(start: float, count: int, step: float, latency: float) -> None:
+        for k in range(count):
+            arrival = clock.now + k * step
+            timing.record(arrival, arrival + latency, 1e-4, start + k * step)
+
+    _cycle(lcm, 0, 4.0)  # the model at the arm's state
+    cycles(3e-3, 20, 3e-3, 2e-4)
+    figures = controller.check_measured_loop()
+    assert figures["period"] == pytest.approx(3e-3) and figures["delay_periods"] == 1
+    assert figures["verdict"] == "unstable"
+    assert controller.events[-1].what.startswith(
+        "hold: gains beyond the sampled loop's bounds: pid.kd, rate:"
+    )
+    _cycle(lcm, 60_000, 4.0)  # the held offset shows the last sample's error (its lag)
+    held = controller.law.offset
+    for k in range(1, 4):  # then the law holds: its offset stays under a -4 N error
+        _cycle(lcm, 60_000 + 1000 * k, 4.0)
+        assert controller.law.offset == held
+    cycles(0.064, 20, 1e-3, 4.5e-3)
+    figures = controller.check_measured_loop()
+    assert figures["delay_periods"] == 5 and figures["verdict"] == "unstable"
+    cycles(0.084, 20, 1e-3, 2e-4)
+    figures = controller.check_measured_loop()
+    assert figures["delay_periods"] == 1 and figures["verdict"] == "stable"
+    assert controller.events[-1].what.startswith("resume: gains within")
+    summary = controller.stability_summary()
+    assert summary["start"]["verdict"] == "stable" and summary["unstable_checks"] == 2
+
+
 # --- the station's watchdog ---------------------------------------------------------------
 
 

@@ -144,7 +144,10 @@ def control_command(args, progress) -> int:
             failure, outcome = str(error), "station gone"
     trace = controller.trace
     with result_folder(out, overwrite=args.force) as folder:
-        folder.write_json("timing.json", controller.timing.summary())
+        folder.write_json(
+            "timing.json",
+            {**controller.timing.summary(), "stability": controller.stability_summary()},
+        )
         folder.write_text(
             "events.log",
             "".join(f"t={e.time:.4f} s  {e.what}\n" for e in controller.events),

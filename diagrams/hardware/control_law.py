@@ -35,6 +35,11 @@ import numpy as np
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import Demultiplexer, PassThrough, TrajectorySource
 
+from admittance.diagrams.analysis.sampled_gains import (
+    SampledGainCheck,
+    check_sampled_gains,
+    normal_model_at,
+)
 from admittance.diagrams.loop.point import (
     AddCommandedPosition,
     AddForceController,
@@ -54,6 +59,7 @@ from admittance.diagrams.robots.spatial_arm import (
     spatial_point,
 )
 from admittance.diagrams.scenario.spatial_arm import SPATIAL_COORDINATES, SpatialScenario
+from admittance.systems.spatial_kinematics import SpatialFrameKinematics
 
 __all__ = ["SpatialControlLaw", "start_positions"]
 
@@ -111,6 +117,36 @@ class SpatialControlLaw:
         self.force_bound_gain = float(force_bound_gain)
         self._law = None
         self._build_law()
+        self._kinematics = SpatialFrameKinematics(
+            plant,
+            self.point.frame,
+            coordinates=SPATIAL_COORDINATES,
+            expressed_in=self.point.expressed_in,
+        )
+        self._normal_model = None
+
+    def check_gains(self, period: float, delay: int = 1, positions=None) -> SampledGainCheck:
+        """The PID's and the law's gains (Gamma as it is now) against the sampled loop at
+        `period` with the command `delay` periods late (``analysis.sampled_gains``), the arm
+        at `positions` (None: where the model's state is now). The apparent mass along the
+        normal is the one at the first check (it moves little over a press)."""
+        context = self.plant.CreateDefaultContext()
+        if positions is None:
+            positions = self.plant.GetPositions(self._plant_context)
+        self.plant.SetPositions(context, np.asarray(positions, dtype=float))
+        if self._normal_model is None:
+            self._normal_model = normal_model_at(self.scenario, positions, period)
+        self._kinematics.set_state(np.concatenate([positions, np.zeros(len(positions))]))
+        return check_sampled_gains(
+            self.scenario,
+            self.plant,
+            context,
+            self._kinematics.jacobian(),
+            period=period,
+            delay=delay,
+            gamma=self.gamma,
+            model=self._normal_model,
+        )
 
     def _build_law(self) -> None:
         """(Re)builds the force law with the current Gamma, alpha and Fmax, carrying the

@@ -11,6 +11,7 @@ a status that a newer one replaced before its cycle ran is skipped (``skipped_st
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -36,16 +37,37 @@ class CycleTiming:
         self._arrivals: list[float] = []
         self._published: list[float] = []
         self._cpu: list[float] = []
+        self._status_times: list[float] = []
         # Statuses received but not answered: a newer one came before the cycle ran.
         self.skipped = 0
         # Statuses between two answered ones that were not answered (skipped or never
         # received), counted from the gaps in utime.
         self.gaps = 0
 
-    def record(self, arrival: float, published: float, cpu: float) -> None:
+    def record(self, arrival: float, published: float, cpu: float, status_time=math.nan) -> None:
         self._arrivals.append(arrival)
         self._published.append(published)
         self._cpu.append(cpu)
+        self._status_times.append(status_time)
+
+    def measured(self, since: int = 0) -> dict | None:
+        """What the cycles from index `since` on measured, for the sampled-loop check
+        (None with fewer than 10): ``period``, the p99 of the status-clock interval between
+        two answered statuses (the time a command is held, s); ``latency``, the p99 of
+        status arrival to command publication (wall, s); ``status_interval``, the median
+        wall time per period of the status clock (s)."""
+        times = np.asarray(self._status_times[since:])
+        arrivals = np.asarray(self._arrivals[since:])
+        if times.size < 10 or not np.all(np.isfinite(times)):
+            return None
+        intervals = np.diff(times)
+        periods = np.maximum(np.round(intervals / self.period), 1.0)
+        return {
+            "cycles": int(times.size),
+            "period": float(np.percentile(intervals, 99)),
+            "latency": float(np.percentile(np.asarray(self._published[since:]) - arrivals, 99)),
+            "status_interval": float(np.median(np.diff(arrivals) / periods)),
+        }
 
     @property
     def cycles(self) -> int:
