@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,7 +40,6 @@ __all__ = [
     "SampledGainCheck",
     "check_sampled_gains",
     "delayed_normal_map",
-    "delay_periods",
     "normal_model_at",
 ]
 
@@ -83,15 +81,6 @@ def delayed_normal_map(model: NormalModel, delay: int) -> np.ndarray:
     return delayed
 
 
-def delay_periods(latency: float, status_interval: float) -> int:
-    """N: the command answering a status acts at the robot's next tick after it arrives,
-    1 + the statuses that came while the controller computed it (latency over the
-    interval between statuses, both wall time)."""
-    if not (status_interval > 0 and math.isfinite(latency)):
-        return 1
-    return 1 + int(math.floor(max(latency, 0.0) / status_interval + 1e-9))
-
-
 @dataclass(frozen=True)
 class SampledGainCheck:
     """What the check found at one period and delay."""
@@ -123,7 +112,7 @@ class SampledGainCheck:
 
     @property
     def rate_needed(self) -> float:
-        """The lowest rate at which the damper is stable at this delay, Hz."""
+        """The lowest rate at which the damper is stable at this delay (0: no damper), Hz."""
         return self.damper_gain / (self.period * self.damper_limit)
 
     def problem(self) -> str | None:
@@ -176,14 +165,16 @@ def check_sampled_gains(
     delay: int = 1,
     gamma: float | None = None,
     model: NormalModel | None = None,
+    kd=None,
 ) -> SampledGainCheck:
     """The scenario's PID and law checked at `period` with the command `delay` periods
     late, the arm at the state of `plant_context` (`jacobian`: the tool tip's 6 x n
     Jacobian in the control frame there). `gamma` overrides the scenario's; `model` (a
-    NormalModel at another period) saves building the scenario's loop again."""
+    NormalModel at another period) saves building the scenario's loop again; `kd` (6
+    values) overrides pid.kd in the damper's check."""
     mass_matrix = plant.CalcMassMatrix(plant_context)
     jacobian = np.asarray(jacobian, dtype=float)
-    kd = np.asarray(scenario.pid.kd, dtype=float)
+    kd = np.asarray(scenario.pid.kd if kd is None else kd, dtype=float)
     if model is None:
         model = normal_model_at(scenario, plant.GetPositions(plant_context), period)
     model = dataclasses.replace(model, period=float(period))

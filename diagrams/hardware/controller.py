@@ -25,9 +25,10 @@ Watchdogs, each logged with its time:
   late): at the start at the nominal rate with the one-period delay of a controller that
   answers within the period (gains beyond its bounds: ``ScenarioError``, one line naming
   the keys and the fix); then once per second of the status clock at the period and the
-  delay the cycles measured (p99 of the command's hold time, p99 latency over the status
-  interval): beyond the bounds the law holds its offset, as for a failed sensor, until a
-  check passes; a parameter message asking for a Gamma above the critical one is refused;
+  delay the cycles measured (p99 of the command's hold time, and of the statuses that came
+  while a command was computed: ``timing.CycleTiming.measured``): beyond the bounds the
+  law holds its offset, as for a failed sensor, until a check passes; a parameter message
+  asking for a Gamma above the critical one is refused;
 * SIGINT or SIGTERM (the caller's ``stop``): the hold command once more, then a clean stop;
   the run's end (the status clock at ``duration``, or a station that falls silent within
   ``END_SLACK`` of it) ends it the same way.
@@ -43,9 +44,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from drake import lcmt_force_torque, lcmt_panda_command, lcmt_panda_status
 
-from admittance.diagrams.analysis.sampled_gains import delay_periods
 from admittance.diagrams.hardware.config import HardwareConfig, spatial_scenario
 from admittance.diagrams.hardware.control_law import SpatialControlLaw
+from admittance.diagrams.hardware.interface import joint_gains
 from admittance.diagrams.hardware.messages import CHANNELS, decode_parameters
 from admittance.diagrams.hardware.timing import CycleTiming
 from admittance.diagrams.scenario.schema import ScenarioError
@@ -105,17 +106,24 @@ class AdmittanceController:
         cpu_clock: Callable[[], float] = time.thread_time,
         newest_only: bool = False,
     ) -> None:
-        if config.mode != "torque":
-            raise ValueError("the controller runs the torque interface only (mode: torque)")
         self.config = config
         self.period = 1.0 / config.rate
         self._lcm = lcm
         self._clock = clock
         self._cpu_clock = cpu_clock
+        self.position_mode = config.mode == "position"
+        scenario = spatial_scenario(config)
+        gains = None
+        if self.position_mode:  # the robot's joint controller, as the station runs it
+
+            def gains(plant, positions):
+                return joint_gains(plant, positions, config, self.period)
+
         self.law = SpatialControlLaw(
-            spatial_scenario(config),
+            scenario,
             max_force=config.max_force,
             force_bound_gain=config.force_bound_gain,
+            joint_gains=gains,
         )
         self.start_check = self.law.check_gains(self.period, 1, self.law.initial_positions)
         problem = self.start_check.problem()
@@ -243,9 +251,9 @@ class AdmittanceController:
         # One sample per period since the last status answered (a lost status's period
         # is the next one's), at most the status watchdog's count.
         samples = min(max(1, int(round(dt / self.period))), self.config.status_timeout_periods)
-        tau = self.law.step(self.time, q, v, math.nan if force is None else force, samples)
+        command = self.law.step(self.time, q, v, math.nan if force is None else force, samples)
         offset = self.law.offset
-        self._publish(status.utime, tau)
+        self._publish(status.utime, command)
         self.timing.record(arrival, self._clock(), self._cpu_clock() - cpu, self.time)
         self.trace.times.append(self.time)
         self.trace.force.append(float("nan") if force is None else force)
@@ -264,7 +272,7 @@ class AdmittanceController:
         if measured is None:
             return None
         self._checked_from = self.timing.cycles
-        nominal = delay_periods(measured["latency"], measured["status_interval"])
+        nominal = measured["delay_periods"]
         # Delay in periods of the command's hold time (a skipped status holds it longer).
         period = max(measured["period"], self.period)
         delay = max(1, math.ceil(nominal * self.period / period - 1e-9))
@@ -301,27 +309,38 @@ class AdmittanceController:
             ),
         }
 
-    def _publish(self, utime: int, torque: np.ndarray) -> None:
+    def _publish(self, utime: int, values: np.ndarray) -> None:
+        """The command: joint torques (torque mode) or joint positions (position mode)."""
         command = lcmt_panda_command()
         command.utime = int(utime)
-        command.num_joint_position = 0
-        command.joint_position = []
+        values = [float(x) for x in values]
+        positions, torques = ([], values) if not self.position_mode else (values, [])
+        command.num_joint_position = len(positions)
+        command.joint_position = positions
         command.num_joint_velocity = 0
         command.joint_velocity = []
-        command.num_joint_torque = NUM_JOINTS
-        command.joint_torque = [float(x) for x in torque]
-        command.control_mode_expected = 4  # PandaControlMode.kTorque
+        command.num_joint_torque = len(torques)
+        command.joint_torque = torques
+        # PandaControlMode.kPosition (1) or kTorque (4).
+        command.control_mode_expected = 1 if self.position_mode else 4
         self._lcm.Publish(CHANNELS.command, command.encode())
         self.last_command = command
 
-    def _hold_torque(self) -> np.ndarray:
+    def _hold(self) -> None:
+        """Publishes the last command's torques or positions again, with the last status's
+        utime (before any command: zero torque; in position mode nothing, the robot holds
+        the arm until its first command)."""
         if self.last_command is None:
-            return np.zeros(NUM_JOINTS)
-        return np.asarray(self.last_command.joint_torque)
+            if not self.position_mode:
+                self._publish(self._last_utime, np.zeros(NUM_JOINTS))
+            return
+        command = self.last_command
+        values = command.joint_position if self.position_mode else command.joint_torque
+        self._publish(self._last_utime, np.asarray(values))
 
     def safe_command(self, why: str) -> None:
-        """Publishes the hold command (the last torques, the last status's utime); logs why."""
-        self._publish(self._last_utime, self._hold_torque())
+        """Publishes the hold command (:meth:`_hold`); logs why."""
+        self._hold()
         self.log(f"hold command: {why}")
 
     # --- the loop ------------------------------------------------------------------------
@@ -354,7 +373,7 @@ class AdmittanceController:
             if not self._status_lost:
                 self._status_lost = True
                 self.log(f"hold: no status for {silent / self.period:.1f} periods")
-            self._publish(self._last_utime, self._hold_torque())
+            self._hold()
 
     def poll(self, timeout: float) -> None:
         """Handles the messages that arrive within `timeout` s, then the watchdogs."""

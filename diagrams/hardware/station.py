@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from drake import lcmt_force_torque, lcmt_panda_command, lcmt_panda_status
+from pydrake.geometry import MeshcatVisualizer
 from pydrake.manipulation import PandaCommandReceiver, PandaControlMode, PandaStatusSender
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
@@ -33,7 +34,7 @@ from pydrake.systems.primitives import Demultiplexer, LogVectorOutput
 
 from admittance.diagrams.hardware.config import HardwareConfig, spatial_scenario
 from admittance.diagrams.hardware.control_law import start_positions
-from admittance.diagrams.hardware.interface import CommandWatchdog, WristWrenchSensor
+from admittance.diagrams.hardware.interface import CommandWatchdog, WristWrenchSensor, joint_gains
 from admittance.diagrams.hardware.messages import CHANNELS
 from admittance.diagrams.robots.spatial_arm import (
     CONTROL_FRAME,
@@ -50,7 +51,11 @@ from admittance.diagrams.run.metrics import (
     time_mean,
 )
 
-__all__ = ["joint_gains", "Station", "BuildStation", "StationRun", "run_station", "station_metrics"]
+__all__ = ["Station", "BuildStation", "StationRun", "run_station", "station_metrics"]
+
+
+# The station reads its Meshcat sliders once per this many periods.
+SLIDER_POLL_STEPS = 10
 
 
 @dataclass
@@ -65,12 +70,15 @@ class Station:
     initial_positions: np.ndarray
 
 
-def BuildStation(config: HardwareConfig, lcm) -> Station:
-    """The station of `config` on the LCM instance `lcm` (a DrakeLcm)."""
+def BuildStation(config: HardwareConfig, lcm, meshcat=None) -> Station:
+    """The station of `config` on the LCM instance `lcm` (a DrakeLcm); with `meshcat`, the
+    arm drawn there."""
     period = 1.0 / config.rate
     scenario = spatial_scenario(config)
     builder = DiagramBuilder()
-    plant, _, _ = AddSpatialArm(builder, scenario)
+    plant, scene_graph, _ = AddSpatialArm(builder, scenario)
+    if meshcat is not None:
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
     plant.set_name("panda_plant")
     initial = start_positions(scenario)
     plant.SetDefaultPositions(initial)
@@ -162,22 +170,6 @@ def BuildStation(config: HardwareConfig, lcm) -> Station:
     )
 
 
-def joint_gains(arm: MultibodyPlant, q, config: HardwareConfig, period: float) -> dict:
-    """The station's joint PD gains, per joint: ``joint_damping`` and ``joint_stiffness``
-    capped where the joint is light. The discrete plant applies the PD's torque explicitly
-    over each step, which is stable for d_i h / M_ii < 2 (M_ii the joint's inertia at the
-    start posture q, h the step); the cap keeps d_i <= 0.5 M_ii / h, and k_i <= d_i^2 / M_ii
-    (damping ratio 0.5 or more). The wrist's last joint (M_77 = 0.0067 kg m^2, the Panda
-    without its motors' reflected inertia, which the URDF does not give) gets d = 3.3 N m s/rad.
-    """
-    context = arm.CreateDefaultContext()
-    arm.SetPositions(context, q)
-    inertia = np.diag(arm.CalcMassMatrix(context))
-    damping = np.minimum(config.joint_damping, 0.5 * inertia / period)
-    stiffness = np.minimum(config.joint_stiffness, damping**2 / inertia)
-    return {"joint_stiffness": stiffness, "joint_damping": damping}
-
-
 @dataclass
 class StationRun:
     """What a station run measured."""
@@ -224,7 +216,9 @@ class _CommandClock:
             lcm.HandleSubscriptions(max(1, int(remaining * 1e3)))
 
 
-def run_station(config: HardwareConfig, lcm, *, progress=None, stop=None) -> StationRun:
+def run_station(
+    config: HardwareConfig, lcm, *, progress=None, stop=None, sliders=None
+) -> StationRun:
     """Runs the station for ``config.duration`` of simulated time, paced to
     ``config.realtime_rate`` where the machine can; `stop()` returning True ends it early.
 
@@ -236,8 +230,11 @@ def run_station(config: HardwareConfig, lcm, *, progress=None, stop=None) -> Sta
     goes on with the newest command it has; once the commands are older than the
     watchdog's timeout it stops waiting. The controller's own timing (timing.json) says
     whether it meets the deadline.
+
+    `sliders` (``sliders.ParameterSliders``): polled every SLIDER_POLL_STEPS periods, the
+    arm drawn on their Meshcat.
     """
-    station = BuildStation(config, lcm)
+    station = BuildStation(config, lcm, None if sliders is None else sliders.meshcat)
     simulator = Simulator(station.diagram)
     simulator.set_target_realtime_rate(config.realtime_rate)
     clock = _CommandClock(lcm)
@@ -252,6 +249,8 @@ def run_station(config: HardwareConfig, lcm, *, progress=None, stop=None) -> Sta
             break
         # The status of the previous step's end (utime (step - 1) period) is out.
         status_utime = int(round((step - 1) * period * 1e6))
+        if sliders is not None and (step - 1) % SLIDER_POLL_STEPS == 0:
+            sliders.poll()
         clock.wait_for_answer(lcm, status_utime, config.command_wait, config.command_timeout)
         simulator.AdvanceTo(step * period)
         if progress is not None and step % 100 == 0:

@@ -52,21 +52,33 @@ class CycleTiming:
 
     def measured(self, since: int = 0) -> dict | None:
         """What the cycles from index `since` on measured, for the sampled-loop check
-        (None with fewer than 10): ``period``, the p99 of the status-clock interval between
-        two answered statuses (the time a command is held, s); ``latency``, the p99 of
-        status arrival to command publication (wall, s); ``status_interval``, the median
-        wall time per period of the status clock (s)."""
+        (None with fewer than 10):
+
+        * ``period``: the p99 of the status-clock interval between two answered statuses
+          (the time a command is held), s;
+        * ``latency``: the p99 of status arrival to command publication (wall), s;
+        * ``status_interval``: the median wall time per period of the status clock, s;
+        * ``delay_periods``: N, the periods from a status to its command acting, the p99
+          over the cycles of 1 + the statuses that came while it computed (its latency
+          over the wall time until the next status arrived, per period of the status
+          clock): a robot's statuses keep coming at its rate, while a simulated station
+          that waits for each answer sends the next only after it (N = 1).
+        """
         times = np.asarray(self._status_times[since:])
         arrivals = np.asarray(self._arrivals[since:])
         if times.size < 10 or not np.all(np.isfinite(times)):
             return None
+        latency = np.asarray(self._published[since:]) - arrivals
         intervals = np.diff(times)
         periods = np.maximum(np.round(intervals / self.period), 1.0)
+        per_period = np.diff(arrivals) / periods
+        waited = np.floor(latency[:-1] / np.maximum(per_period, 1e-9) + 1e-9)
         return {
             "cycles": int(times.size),
             "period": float(np.percentile(intervals, 99)),
-            "latency": float(np.percentile(np.asarray(self._published[since:]) - arrivals, 99)),
-            "status_interval": float(np.median(np.diff(arrivals) / periods)),
+            "latency": float(np.percentile(latency, 99)),
+            "status_interval": float(np.median(per_period)),
+            "delay_periods": int(1 + np.percentile(waited, 99, method="higher")),
         }
 
     @property
