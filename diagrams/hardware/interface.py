@@ -21,7 +21,7 @@ from drake import lcmt_force_torque, lcmt_panda_command
 from pydrake.common.value import Value
 from pydrake.systems.framework import BasicVector, LeafSystem
 
-__all__ = ["CommandWatchdog", "WristWrenchSensor", "joint_gains"]
+__all__ = ["CommandWatchdog", "WrenchMessage", "WristWrenchSensor", "joint_gains"]
 
 NUM_JOINTS = 7
 
@@ -206,6 +206,37 @@ class WristWrenchSensor(LeafSystem):
 
     def _calc_wrench(self, context, output: BasicVector) -> None:
         output.SetFromVector(self.wrench(context))
+
+
+class WrenchMessage(LeafSystem):
+    """A wrench [fx, fy, fz, tx, ty, tz] (in the sensor frame) as ``lcmt_force_torque``,
+    ``timestamp`` in microseconds of the station's time: what the force/torque sensor's
+    driver publishes (the scenario's wrist sensor, ``systems.wrench_sensor.WrenchSensor``,
+    with its bias, noise, low-pass and readout period).
+
+    .. pydrake_system::
+
+        name: WrenchMessage
+        input_ports:
+        - wrench
+        output_ports:
+        - lcmt_force_torque
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._wrench = self.DeclareVectorInputPort("wrench", 6)
+        self.DeclareAbstractOutputPort(
+            "lcmt_force_torque", lambda: Value(lcmt_force_torque()), self._calc_message
+        )
+
+    def _calc_message(self, context, output) -> None:
+        wrench = self._wrench.Eval(context)
+        message = lcmt_force_torque()
+        message.timestamp = int(round(context.get_time() * 1e6))
+        message.fx, message.fy, message.fz = (float(x) for x in wrench[:3])
+        message.tx, message.ty, message.tz = (float(x) for x in wrench[3:])
+        output.set_value(message)
 
 
 def joint_gains(arm, q, config, period: float) -> dict:

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from drake import lcmt_force_torque, lcmt_panda_command, lcmt_panda_status
+from pydrake.common import RandomGenerator
 from pydrake.geometry import MeshcatVisualizer
 from pydrake.manipulation import PandaCommandReceiver, PandaControlMode, PandaStatusSender
 from pydrake.multibody.plant import MultibodyPlant
@@ -34,14 +35,21 @@ from pydrake.systems.primitives import Demultiplexer, LogVectorOutput
 
 from admittance.diagrams.hardware.config import HardwareConfig, spatial_scenario
 from admittance.diagrams.hardware.control_law import start_positions
-from admittance.diagrams.hardware.interface import CommandWatchdog, WristWrenchSensor, joint_gains
+from admittance.diagrams.hardware.interface import (
+    CommandWatchdog,
+    WrenchMessage,
+    WristWrenchSensor,
+    joint_gains,
+)
 from admittance.diagrams.hardware.messages import CHANNELS
+from admittance.diagrams.loop.point import AddSensorChain
 from admittance.diagrams.robots.spatial_arm import (
     CONTROL_FRAME,
     NORMAL_AXIS,
     TOOL_BODY,
     TOOL_TIP_FRAME,
     AddSpatialArm,
+    spatial_point,
 )
 from admittance.diagrams.run.metrics import (
     final_window,
@@ -50,8 +58,16 @@ from admittance.diagrams.run.metrics import (
     settled_from,
     time_mean,
 )
+from admittance.systems.wrench_sensor import WrenchSensor
 
-__all__ = ["Station", "BuildStation", "StationRun", "run_station", "station_metrics"]
+__all__ = [
+    "InitializeStation",
+    "Station",
+    "BuildStation",
+    "StationRun",
+    "run_station",
+    "station_metrics",
+]
 
 
 # The station reads its Meshcat sliders once per this many periods.
@@ -68,6 +84,10 @@ class Station:
     loggers: dict
     # The arm's joints at t = 0, rad.
     initial_positions: np.ndarray
+    # The scenario's wrist sensor (sensor.kind wrench), None for the ideal one.
+    wrist_sensor: WrenchSensor | None = None
+    # The scenario's seed, for the sensor's noise.
+    seed: int = 0
 
 
 def BuildStation(config: HardwareConfig, lcm, meshcat=None) -> Station:
@@ -152,7 +172,16 @@ def BuildStation(config: HardwareConfig, lcm, meshcat=None) -> Station:
         "wrench_publisher",
         LcmPublisherSystem.Make(CHANNELS.wrench, lcmt_force_torque, lcm, period),
     )
-    builder.Connect(sensor.GetOutputPort("lcmt_force_torque"), wrench_publisher.get_input_port())
+    wrist = None
+    if scenario.sensor.kind == "wrench":  # the scenario's sensor: bias, noise, low-pass
+        wrist = _AddWristSensor(builder, scenario, plant, initial)
+        message = builder.AddNamedSystem("wrench_message", WrenchMessage())
+        builder.Connect(wrist.compensated_wrench_output, message.get_input_port())
+        builder.Connect(message.get_output_port(), wrench_publisher.get_input_port())
+    else:  # the ideal sensor: the tool's contact wrench
+        builder.Connect(
+            sensor.GetOutputPort("lcmt_force_torque"), wrench_publisher.get_input_port()
+        )
 
     loggers = {
         "state": LogVectorOutput(plant.get_state_output_port(), builder, period),
@@ -167,7 +196,28 @@ def BuildStation(config: HardwareConfig, lcm, meshcat=None) -> Station:
         watchdog=watchdog,
         loggers=loggers,
         initial_positions=initial,
+        wrist_sensor=wrist,
+        seed=int(scenario.seed),
     )
+
+
+def _AddWristSensor(builder, scenario, plant, initial) -> WrenchSensor:
+    """The scenario's wrist force/torque sensor at ``tool_weld`` (``sensor.kind: wrench``),
+    built by the simulated loop's own step (``loop.point.AddSensorChain`` on
+    ``spatial_point``), its noise from a RandomSource at its readout period."""
+    point = spatial_point(scenario, plant, initial)
+    return AddSensorChain(builder, point, None, plant=plant).sensor
+
+
+def InitializeStation(station: Station, context) -> None:
+    """The noise seeded from the scenario's seed, and a wrist sensor's held or filtered
+    reading at what it reads at rest in the air, the tool's weight (as the simulated loop
+    starts it), which its compensation removes."""
+    station.diagram.SetRandomContext(context, RandomGenerator(station.seed))
+    sensor = station.wrist_sensor
+    if sensor is not None:  # read at the step at least (spatial_point): a held reading
+        sensor_context = sensor.GetMyMutableContextFromRoot(context)
+        sensor_context.SetDiscreteState(sensor.weight_wrench(sensor_context))
 
 
 @dataclass
@@ -237,6 +287,7 @@ def run_station(
     station = BuildStation(config, lcm, None if sliders is None else sliders.meshcat)
     simulator = Simulator(station.diagram)
     simulator.set_target_realtime_rate(config.realtime_rate)
+    InitializeStation(station, simulator.get_mutable_context())
     clock = _CommandClock(lcm)
     simulator.Initialize()
     start = time.monotonic()
