@@ -371,6 +371,7 @@ def test_the_gains_are_checked_again_at_the_rate_and_latency_measured():
     assert controller.events[-1].what.startswith("resume: gains within")
     summary = controller.stability_summary()
     assert summary["start"]["verdict"] == "stable" and summary["unstable_checks"] == 2
+    assert [c["verdict"] for c in summary["history"]] == ["unstable", "unstable", "stable"]
 
 
 # --- the station's watchdog ---------------------------------------------------------------

@@ -61,6 +61,8 @@ START_TIMEOUT = 60.0
 END_SLACK = 0.1
 # The status clock's interval between two checks of the gains against the measured loop, s.
 CHECK_INTERVAL = 1.0
+# What timing.json's stability history keeps of each check.
+HISTORY_KEYS = ("time", "period", "latency", "delay_periods", "damper_gain", "verdict")
 
 
 class StationGoneError(RuntimeError):
@@ -307,6 +309,7 @@ class AdmittanceController:
             "worst": max(
                 self.gain_checks, key=lambda c: c["damper_gain"] / c["damper_limit"], default=None
             ),
+            "history": [{key: check[key] for key in HISTORY_KEYS} for check in self.gain_checks],
         }
 
     def _publish(self, utime: int, values: np.ndarray) -> None:
