@@ -258,6 +258,12 @@ def test_parameter_message_changes_the_running_law_without_a_jump():
     # The sixth sample at the new Gamma: Gamma K h E = 1e-6 * 2000 * 1e-3 * -4.
     assert controller.law.offset - before == pytest.approx(STEP * -4.0 + 2e-3 * 1e-3 * -4.0)
     assert "parameters: alpha=0, gamma=1e-06" in controller.events[-1].what
+    # Gamma above the sampled loop's critical one (1.47e-5 at 1 kHz, one period late;
+    # tests/test_hardware_gains.py): refused.
+    lcm.Publish(CHANNELS.parameters, encode_parameters(gamma=2e-5))
+    lcm.HandleSubscriptions(0)
+    assert controller.law.gamma == 1e-6
+    assert controller.events[-1].what.startswith("parameters rejected: gamma=2e-05")
     lcm.Publish(CHANNELS.parameters, b'{"max_force": 1}')  # below Fr: refused
     lcm.HandleSubscriptions(0)
     assert controller.law.max_force == config.max_force
