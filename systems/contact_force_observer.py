@@ -4,19 +4,32 @@ The arm's dynamics M(q) v' + C(q, v) v = tau + tau_g(q) + tau_ext give, with p =
 M' = C + C^T, p' = tau + tau_g + C^T v + tau_ext. The observer of De Luca and Mattone
 ("Sensorless robot collision detection and hybrid force/motion control", ICRA 2005)
 
-    r = K_o (p - p_I),    dp_I/dt = tau + tau_g + r
+    r = K_o (p - p_I),    dp_I/dt = tau + tau_g + C(q, v)^T v + r
 
 gives dr/dt = K_o (tau_ext - r): r follows the external joint torque through a first-order
 lag 1 / K_o, from the joint state and the applied torques alone (no acceleration, no
-force sensor, no model of the wall). The wall pushes the fingertip along -x, so
-tau_ext = J^T (-F, 0, 0) and the estimate of the compressive contact force is
+force sensor, no model of the wall). The contact pushes the point back along its normal
+(the planar arm's wall along -x, the spatial arm's table along -z of the control frame),
+so tau_ext = J^T (-F e_n) and the estimate of the compressive contact force is
 
-    F_hat = -(J^-T r)_x.
+    F_hat = -(J^-T r)_n,
 
-C^T v is left out: at the fingertip speeds of this arm (below 0.1 m/s, links of 0.2 m)
-it is below 1e-3 N m. The fault detector compares the sensor's reading with F_hat
+J the Jacobian of the task coordinates (``coordinates`` in ``expressed_in``, as
+systems/planar_kinematics.py and systems/spatial_kinematics.py take them) and n the
+normal's index in X; for a redundant arm J^-T is the least-squares solve.
+
+**C(q, v)^T v** is the Lagrangian's dT/dq at fixed v (T = v^T M(q) v / 2, for q' = v), so
+that p' = tau + tau_g + dT/dq + tau_ext. It is computed as dM/dt v - C(q, v) v (from
+M' = C + C^T), C v the plant's bias term and dM/dt a central difference of M(q) along
+q' = N(q) v over a step of 1e-5 rad at the fastest joint (truncation and rounding both
+below 1e-9 of the term), so for each evaluation two more mass matrices and a bias term.
+Left out (``coriolis=False``, the observer as it was), the observer reads the term as a
+contact: r settles at -C^T v, quadratic in the joint speeds (docs/safety.md, "The
+observer's full momentum dynamics").
+
+The fault detector compares the sensor's reading with F_hat
 (systems/fault_detector.py), and r itself with what a force along the normal can explain:
-r off the direction J_x^T is a collision on a link (docs/safety.md, "The collision
+r off the direction J_n^T is a collision on a link (docs/safety.md, "The collision
 reflex"); the output `external_torque` is r.
 """
 
@@ -29,9 +42,40 @@ from pydrake.autodiffutils import AutoDiffXd
 from pydrake.systems.framework import LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES
+from admittance.systems.spatial_kinematics import frame_kinematics
 
-__all__ = ["ContactForceObserver", "ContactForceObserver_"]
+__all__ = ["ContactForceObserver", "ContactForceObserver_", "velocity_product"]
+
+# The central difference of M(q) along q' moves the fastest joint by this much, rad.
+DIFFERENCE_STEP = 1e-5
+
+
+def _value(x) -> float:
+    return float(x) if isinstance(x, float | int) else float(x.value())
+
+
+def velocity_product(plant, context, shifted_context):
+    """C(q, v)^T v = dM/dt v - C(q, v) v at the state of the plant's `context`.
+
+    dM/dt is the central difference of M(q) along q' = N(q) v (MapVelocityToQDot) over
+    a step that moves the fastest coordinate by DIFFERENCE_STEP; `shifted_context` is a
+    second context of `plant` for the shifted positions. Zero when the arm is at rest.
+    Float or AutoDiffXd (the step is taken at the values).
+    """
+    v = plant.GetVelocities(context)
+    q = plant.GetPositions(context)
+    qdot = plant.MapVelocityToQDot(context, v)
+    fastest = max(abs(_value(x)) for x in qdot)
+    if fastest == 0.0:
+        return np.zeros(plant.num_velocities())
+    step = DIFFERENCE_STEP / fastest
+    plant.SetPositions(shifted_context, q + step * qdot)
+    ahead = plant.CalcMassMatrix(shifted_context)
+    plant.SetPositions(shifted_context, q - step * qdot)
+    behind = plant.CalcMassMatrix(shifted_context)
+    mass_rate = (ahead - behind) / (2.0 * step)
+    return mass_rate @ v - plant.CalcBiasTerm(context)
 
 
 @TemplateSystem.define("ContactForceObserver_", T_list=[float, AutoDiffXd])
@@ -60,6 +104,9 @@ def ContactForceObserver_(T):
             frame_name: str = "fingertip",
             gain: float = 100.0,
             normal_axis: int = 0,
+            coordinates=PLANAR_COORDINATES,
+            expressed_in: str = "world",
+            coriolis: bool = True,
             converter=None,
         ) -> None:
             """
@@ -67,7 +114,12 @@ def ContactForceObserver_(T):
                 plant: finalized MultibodyPlant_[T] of the arm.
                 frame_name: the contact frame.
                 gain: K_o, the observer's bandwidth, 1/s (> 0).
-                normal_axis: the wall normal's index in X = (x, y, theta).
+                normal_axis: the contact normal's index in X.
+                coordinates: the task vector X (x, y, theta by default; the spatial
+                    arm's x, y, z, rx, ry, rz), names among TASK_COORDINATES.
+                expressed_in: the frame X is measured and expressed in.
+                coriolis: integrate C(q, v)^T v (False: the observer without it, for the
+                    comparison of docs/safety.md).
             """
             LeafSystem_[T].__init__(self, converter=converter)
             if not (math.isfinite(gain) and gain > 0):
@@ -76,7 +128,10 @@ def ContactForceObserver_(T):
             self._frame_name = frame_name
             self._gain = float(gain)
             self._normal_axis = int(normal_axis)
-            self._kinematics = PlanarFrameKinematics(plant, frame_name)
+            self._task = dict(coordinates=tuple(coordinates), expressed_in=expressed_in)
+            self._coriolis = bool(coriolis)
+            self._kinematics = frame_kinematics(plant, frame_name, **self._task)
+            self._shifted_context = plant.CreateDefaultContext()
             nq, nv = plant.num_positions(), plant.num_velocities()
             self._num_positions = nq
             self._actuation_matrix = plant.MakeActuationMatrix()
@@ -105,7 +160,9 @@ def ContactForceObserver_(T):
                 frame_name=other._frame_name,
                 gain=other._gain,
                 normal_axis=other._normal_axis,
+                coriolis=other._coriolis,
                 converter=converter,
+                **other._task,
             )
 
         @property
@@ -132,8 +189,11 @@ def ContactForceObserver_(T):
         def DoCalcTimeDerivatives(self, context, derivatives) -> None:
             residual = self._residual(context)
             torque = self._actuation_matrix @ self.actuation_input.Eval(context)
-            gravity = self._plant.CalcGravityGeneralizedForces(self._kinematics.context)
-            derivatives.get_mutable_vector().SetFromVector(torque + gravity + residual)
+            plant_context = self._kinematics.context
+            rate = torque + self._plant.CalcGravityGeneralizedForces(plant_context) + residual
+            if self._coriolis:
+                rate = rate + velocity_product(self._plant, plant_context, self._shifted_context)
+            derivatives.get_mutable_vector().SetFromVector(rate)
 
         def _CalcContactForce(self, context, output) -> None:
             residual = self._residual(context)  # sets the kinematics to the context's state

@@ -58,7 +58,8 @@ from pydrake.common.value import Value
 from pydrake.systems.framework import BasicVector_, LeafSystem_, ValueProducer
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES
+from admittance.systems.spatial_kinematics import frame_kinematics
 
 __all__ = [
     "FAULT_FLAGS",
@@ -159,6 +160,8 @@ def SensorFaultDetector_(T):
             observer_gain: float,
             normal_axis: int = 0,
             frozen: bool = False,
+            coordinates=PLANAR_COORDINATES,
+            expressed_in: str = "world",
             converter=None,
         ) -> None:
             """
@@ -173,6 +176,8 @@ def SensorFaultDetector_(T):
                 observer_gain: K_o of the force observer, 1/s.
                 normal_axis: the wall normal's index in X = (x, y, theta).
                 frozen: no state, no check (analysis diagrams).
+                coordinates, expressed_in: the task vector X and its frame (the planar
+                    arm's x, y, theta in world by default; the spatial arm's tool tip).
             """
             LeafSystem_[T].__init__(self, converter=converter)
             for name, value in (
@@ -197,6 +202,8 @@ def SensorFaultDetector_(T):
                 observer_gain=observer_gain,
                 normal_axis=normal_axis,
                 frozen=frozen,
+                coordinates=tuple(coordinates),
+                expressed_in=expressed_in,
             )
             self._period = float(period)
             self._noise_std = float(noise_std)
@@ -206,7 +213,9 @@ def SensorFaultDetector_(T):
             self._observer_gain = float(observer_gain)
             self._normal_axis = int(normal_axis)
             self._frozen = bool(frozen)
-            self._kinematics = PlanarFrameKinematics(plant, frame_name)
+            self._kinematics = frame_kinematics(
+                plant, frame_name, coordinates=coordinates, expressed_in=expressed_in
+            )
             self._num_positions = plant.num_positions()
             nx = plant.num_positions() + plant.num_velocities()
             self.measured_force_input = self.DeclareVectorInputPort("measured_force", 1)

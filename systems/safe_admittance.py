@@ -5,7 +5,10 @@ stiffness estimate k_hat (systems/stiffness_estimator.py) and the reduced contac
 (systems/contact_model.py, m the apparent mass from the plant as built, the motors'
 reflected inertia included when the plant has it, and a stated payload m_p at the
 fingertip: M(q) + m_p J_t^T J_t, J_t the fingertip point's translational rows of J;
-contact_model.apparent_mass):
+contact_model.apparent_mass; with ``held_axes``, the spatial arm's, the task-space
+inertia's Lambda_nn with the other task axes held, systems/safety_numbers.py). The task
+vector X is the planar arm's (x, y, theta) or any of systems/spatial_kinematics.py's (the
+spatial arm's tool tip, x, y, z, rx, ry, rz in its control frame, the normal z):
 
 **The law in contact is eq. 10 with a scheduled gain.** With Gamma_s = s Gamma,
 
@@ -116,10 +119,12 @@ from pydrake.systems.framework import BasicVector_, LeafSystem_, ValueProducer
 from pydrake.systems.scalar_conversion import TemplateSystem
 
 from admittance.systems import contact_model
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES
+from admittance.systems.safety_numbers import SafetyNumbers, backed_off, task_apparent_mass
 from admittance.systems.sampled_loop import SampledContactLoop
+from admittance.systems.spatial_kinematics import frame_kinematics
 
-__all__ = ["SafeAdmittance", "SafeAdmittance_", "SafetyNumbers"]
+__all__ = ["SafeAdmittance", "SafeAdmittance_"]
 
 # Back-calculation anti-windup time constant, s (as in optimal_admittance).
 WINDUP_TIME_CONSTANT = 0.01
@@ -127,18 +132,6 @@ WINDUP_TIME_CONSTANT = 0.01
 
 def _value(x) -> float:
     return float(x) if isinstance(x, float | int) else float(x.value())
-
-
-def _backed_off(approach_speed, advance_speed, max_force, force_reference):
-    """The command's speeds toward the wall once it is reported stiffer than stated
-    (docs/safety.md, section 7): both at most v_f = v_max (Fmax - Fr) / Fmax, the speed
-    whose impact, on top of Fr, peaks at Fmax on a wall of the estimate's stiffness."""
-    follow = approach_speed * max(max_force - force_reference, 0.0) / max_force
-    return min(approach_speed, follow), min(advance_speed, follow)
-
-
-class SafetyNumbers(dict):
-    """The derived numbers of the layer at one state (apparent mass, c, v_max, ...)."""
 
 
 @TemplateSystem.define("SafeAdmittance_", T_list=[float, AutoDiffXd])
@@ -192,6 +185,9 @@ def SafeAdmittance_(T):
             normal_axis: int = 0,
             num_axes: int = 3,
             backoff_stiffness: float = math.inf,
+            coordinates=PLANAR_COORDINATES,
+            expressed_in: str = "world",
+            held_axes: bool = False,
             converter=None,
         ) -> None:
             """
@@ -220,6 +216,12 @@ def SafeAdmittance_(T):
                 backoff_stiffness: above this estimate (a wall reported stiffer than
                     stated) the command moves toward the wall at most at
                     v_f = v_max (Fmax - Fr) / Fmax, in contact and in free motion, N/m.
+                coordinates, expressed_in: the task vector X and the frame it is in
+                    (the planar arm's x, y, theta in world by default; the spatial arm's
+                    x, y, z, rx, ry, rz in its control frame).
+                held_axes: the apparent mass with the other task axes held,
+                    Lambda_nn of (J M^-1 J^T)^-1, rather than free, 1 / (j M^-1 j^T)
+                    (systems/safety_numbers.py).
             """
             LeafSystem_[T].__init__(self, converter=converter)
             positive = {
@@ -262,7 +264,11 @@ def SafeAdmittance_(T):
                 normal_axis=int(normal_axis),
                 num_axes=int(num_axes),
                 backoff_stiffness=float(backoff_stiffness),
+                coordinates=tuple(coordinates),
+                expressed_in=expressed_in,
+                held_axes=bool(held_axes),
             )
+            self._held_axes = bool(held_axes)
             self._backoff_stiffness = float(backoff_stiffness)
             self._gamma = float(gamma)
             self._alpha = float(alpha)
@@ -290,7 +296,15 @@ def SafeAdmittance_(T):
             )
             self._axis = int(normal_axis)
             self._num_axes = int(num_axes)
-            self._kinematics = PlanarFrameKinematics(plant, frame_name)
+            self._kinematics = frame_kinematics(
+                plant, frame_name, coordinates=coordinates, expressed_in=expressed_in
+            )
+            # The rows of X that are the point's translation (for a payload's mass).
+            self._translational_rows = [
+                row
+                for row, name in enumerate(self._kinematics.coordinates)
+                if name in ("x", "y", "z")
+            ]
             nq, nv = plant.num_positions(), plant.num_velocities()
             self._num_positions = nq
 
@@ -367,11 +381,13 @@ def SafeAdmittance_(T):
             if T is not float:
                 jacobian = np.array([[_value(x) for x in row] for row in jacobian])
                 mass_matrix = np.array([[_value(x) for x in row] for row in mass_matrix])
-            mass = contact_model.apparent_mass(
+            mass = task_apparent_mass(
                 mass_matrix,
-                jacobian[self._axis],
+                jacobian,
+                self._axis,
+                translational_rows=self._translational_rows,
                 payload_mass=self._payload,
-                translational_jacobian=jacobian[:2],
+                held_axes=self._held_axes,
             )
             # Beyond the stated bound (docs/safety.md, section 7): on a wall the estimate
             # shows stiffer than Ke_max, the approach speed is the estimate's (any
@@ -391,7 +407,7 @@ def SafeAdmittance_(T):
                 self._kp * (self._alpha + self._detection_delay) * (1.0 + overshoot)
             )
             if stiffness_estimate > self._backoff_stiffness:
-                approach_speed, advance_speed = _backed_off(
+                approach_speed, advance_speed = backed_off(
                     approach_speed, advance_speed, self._max_force, force_reference
                 )
             if self._period > 0:
@@ -548,7 +564,7 @@ def SafeAdmittance_(T):
             if not self.wall_approach_speed_input.HasValue(context):
                 return rate
             speed = _value(self.wall_approach_speed_input.Eval(context)[0])
-            guaranteed = _backed_off(
+            guaranteed = backed_off(
                 numbers["approach_speed"], math.inf, self._max_force, reference
             )[0]
             return rate - speed if speed > guaranteed else rate

@@ -41,7 +41,8 @@ from pydrake.autodiffutils import AutoDiffXd
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES
+from admittance.systems.spatial_kinematics import frame_kinematics
 
 __all__ = ["StiffnessEstimator", "StiffnessEstimator_"]
 
@@ -144,6 +145,8 @@ def StiffnessEstimator_(T):
             normal_axis: int = 0,
             frozen_estimate: float | None = None,
             latch_stiffness: float = math.inf,
+            coordinates=PLANAR_COORDINATES,
+            expressed_in: str = "world",
             converter=None,
         ) -> None:
             """
@@ -158,6 +161,8 @@ def StiffnessEstimator_(T):
                 frozen_estimate: None, or a constant estimate (N/m) for analysis.
                 latch_stiffness: once the estimate has been above it (a wall stiffer
                     than stated), it never falls below the highest value it reached, N/m.
+                coordinates, expressed_in: the task vector X and its frame (the planar
+                    arm's x, y, theta in world by default; the spatial arm's tool tip).
             """
             LeafSystem_[T].__init__(self, converter=converter)
             self._plant = plant
@@ -170,6 +175,8 @@ def StiffnessEstimator_(T):
                 normal_axis=normal_axis,
                 frozen_estimate=frozen_estimate,
                 latch_stiffness=latch_stiffness,
+                coordinates=tuple(coordinates),
+                expressed_in=expressed_in,
             )
             if not latch_stiffness > 0:
                 raise ValueError(f"latch_stiffness must be > 0, got {latch_stiffness}")
@@ -182,7 +189,9 @@ def StiffnessEstimator_(T):
             self._frozen = (
                 None if frozen_estimate is None else _positive("frozen_estimate", frozen_estimate)
             )
-            self._kinematics = PlanarFrameKinematics(plant, frame_name)
+            self._kinematics = frame_kinematics(
+                plant, frame_name, coordinates=coordinates, expressed_in=expressed_in
+            )
             nx = plant.num_positions() + plant.num_velocities()
             self.measured_force_input = self.DeclareVectorInputPort("measured_force", 1)
             self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", nx)

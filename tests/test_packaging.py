@@ -17,6 +17,8 @@ from pathlib import Path
 
 import pytest
 
+from admittance.diagrams.robots.spatial_arm import example_robot_data_packages
+
 REPOSITORY = Path(__file__).resolve().parents[1]
 
 
@@ -114,3 +116,38 @@ def test_wheel_loads_a_users_own_urdf_and_scenario_by_path(wheel_env, tmp_path):
     assert missing.stderr.strip().splitlines() == [
         "admittance: error: arm.urdf: must be an existing URDF file, got 'nowhere.urdf'"
     ]
+
+
+@pytest.mark.skipif(
+    example_robot_data_packages() is None, reason="needs the robots extra (example-robot-data)"
+)
+def test_wheel_presses_the_panda_and_analyses_its_whole_loop(wheel_env, tmp_path):
+    """The spatial arm from the wheel: the Panda of the robots extra pressing its table
+    (in contact within the run: first contact 0.92 s, measured), and `admittance
+    stability`'s whole-loop linearization with P > 0 (its figures are tested in
+    test_spatial_analysis.py; here, that the wheel carries everything they need)."""
+    out = tmp_path / "press"
+    ran = _run(
+        [
+            wheel_env / "admittance",
+            "simulate",
+            "panda_surface_press",
+            "--set",
+            "duration=4.5",
+            "--out",
+            out,
+            "-q",
+        ],
+        tmp_path,
+    )
+    assert ran.returncode == 0, ran.stderr
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert 0.8 < metrics["first_contact_time"] < 1.0 and metrics["peak_force"] > 5.0
+    report = tmp_path / "stability"
+    analysed = _run(
+        [wheel_env / "admittance", "stability", "panda_surface_press", "--quick", "--out", report],
+        tmp_path,
+    )
+    assert analysed.returncode == 0, analysed.stderr
+    whole = json.loads((report / "report.json").read_text())["whole_loop"]
+    assert whole["stable"] and whole["lyapunov"]["positive_definite"]

@@ -315,9 +315,7 @@ def test_the_sampled_damper_gain_of_a_sliding_mass_by_hand():
     body = plant.AddRigidBody(
         "block", SpatialInertia(2.0, np.zeros(3), UnitInertia.SolidSphere(0.05))
     )
-    plant.AddJoint(
-        PrismaticJoint("slide", plant.world_frame(), body.body_frame(), [1.0, 0.0, 0.0])
-    )
+    plant.AddJoint(PrismaticJoint("slide", plant.world_frame(), body.body_frame(), [1.0, 0.0, 0.0]))
     plant.Finalize()
     gain = sampled_damper_gain(plant, "block", [0.3, 0.0], [300.0, 50.0, 5.0], 1e-3)
     assert gain == pytest.approx(0.15, rel=1e-12)

@@ -1,12 +1,13 @@
-"""Stability of the spatial arm's force loop: a reduced model along the normal, sampled.
+"""Stability of the spatial arm's force loop: a reduced model along the normal, sampled,
+checked against the whole loop linearized through AutoDiffXd.
 
-Drake's Linearize cannot take the spatial loop: its plant is discrete (SAP, ``lagged``
-point contact; the bare plant does convert to AutoDiffXd and steps in it), but the loop's
-TableForce reads the contact results in a float-only LeafSystem, so the diagram does not
-convert, and Linearize refuses a discrete MultibodyPlant's sampled output ports anyway. The
-loop is therefore reduced to the normal, as diagrams/analysis/stability.py reads the
-paper's arm, at the loop's CONTACT EQUILIBRIUM (the state at the end of the scenario's own
-run: the tool pressing with Fr, at rest):
+The whole loop (diagrams/analysis/spatial_step_map.py: seven joints, the contact engine,
+the 6-D PID and the law, 33 states for the Panda) is the reference: one step of the
+diagram differentiated by AutoDiffXd at the contact equilibrium, its critical Gamma
+confirmed by nonlinear runs started at rest. The reduced model reads the loop along the
+normal, as diagrams/analysis/stability.py reads the paper's arm, at the loop's CONTACT
+EQUILIBRIUM (the state at the end of the scenario's own run: the tool pressing with Fr, at
+rest), so that its numbers can be read by hand:
 
 * the arm's APPARENT MASS along the normal, m = Lambda_zz, Lambda = (J M^-1 J^T)^-1 with J
   the tool tip's 6 x n Jacobian in the control frame (the five other axes held by the PID);
@@ -41,6 +42,13 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.multibody.tree import JacobianWrtVariable
 
+from admittance.diagrams.analysis.spatial_step_map import (
+    LoopStepMap,
+    confirm_loop_critical_gamma,
+    equilibrium_force,
+    loop_critical_gamma,
+    loop_step_map,
+)
 from admittance.diagrams.analysis.stability import (
     critical_gain,
     lyapunov_certificate,
@@ -65,6 +73,7 @@ __all__ = [
     "routh_critical_gamma",
     "spatial_critical_gamma",
     "state_names",
+    "whole_loop_summary",
 ]
 
 #: The reduced state, in order.
@@ -150,8 +159,8 @@ def apparent_mass(plant, plant_context) -> dict:
 
 
 def check_reducible(scenario: SpatialScenario) -> None:
-    """Raises ScenarioError (one line) unless the reduced model covers `scenario`: the
-    paper's law with the ideal sensor."""
+    """Raises ScenarioError (one line) unless the analysis covers `scenario`: the paper's
+    law with the ideal sensor, without the safety layer."""
     if scenario.controller.kind != "optimal_admittance":
         raise ScenarioError(
             f"controller.kind: the stability analysis reads the paper's law "
@@ -160,6 +169,11 @@ def check_reducible(scenario: SpatialScenario) -> None:
     if scenario.sensor.kind != "ideal":
         raise ScenarioError(
             f"sensor.kind: the reduced model reads the ideal sensor, got {scenario.sensor.kind!r}"
+        )
+    if scenario.safety.enabled:
+        raise ScenarioError(
+            "safety.enabled: the stability analysis reads the loop without the safety layer "
+            "(its observer integrates between the plant's steps); set it to false"
         )
 
 
@@ -211,14 +225,20 @@ def _amplitude(result: SpatialResult, start: float, end: float) -> float:
 def confirm_spatial_critical_gamma(
     scenario: SpatialScenario, critical: float, factors=(0.8, 1.25)
 ) -> list[dict]:
-    """The scenario's nonlinear runs at factor x the critical Gamma.
+    """The scenario's nonlinear runs at factor x the critical Gamma, from its start.
 
     A run is STABLE when the force error's amplitude over its last second is under 5 % of
     Fr and below that over the second before (the oscillation decays; or under 0.1 % of
     Fr), with no contact lost in the last second; otherwise (diverged, growing, or a
-    limit cycle that loses contact) it is unstable.
+    limit cycle that loses contact) it is unstable. A scenario with a slide runs as a
+    press (no slide, 3 s past the slide's start): the slide's own disturbance is not
+    the loop's instability.
     """
     outcomes = []
+    if scenario.trajectory.slide_distance > 0:
+        scenario = copy.deepcopy(scenario)
+        scenario.trajectory.slide_distance = 0.0
+        scenario.duration = scenario.slide_start + 3.0
     end = scenario.duration
     for factor in factors:
         gamma = factor * critical
@@ -261,8 +281,11 @@ def analyse_spatial_stability(
     its confirmation by nonlinear runs). A JSON-serialisable dict (P as a list)."""
     check_reducible(scenario)
     progress("the scenario's run to its contact equilibrium")
-    nominal = run_spatial(scenario)
-    settled = nominal.joint_positions[-1]
+    step_map = loop_step_map(scenario)
+    plant = step_map.loop.plant
+    settled = plant.GetPositions(plant.GetMyContextFromRoot(step_map.context))
+    progress("the whole loop's step linearized through AutoDiffXd")
+    whole = whole_loop_summary(scenario, step_map, confirm=confirm)
     model, masses = normal_model(scenario, settled)
     A = normal_map(model)
     modes = modal_summary(A, period=model.period)
@@ -276,7 +299,7 @@ def analyse_spatial_stability(
         "period": model.period,
         "states": state_names(model),
         "equilibrium": {
-            "force": float(nominal.force[-1]),
+            "force": equilibrium_force(step_map),
             "force_reference": scenario.force_reference,
             "joint_positions": settled.tolist(),
         },
@@ -289,7 +312,37 @@ def analyse_spatial_stability(
         "margin": critical / model.gamma if critical else math.inf,
         "continuous_critical_gamma": routh_critical_gamma(model),
     }
+    summary["whole_loop"] = whole
     if confirm and critical is not None:
         progress("nonlinear runs at 0.8 and 1.25 x the critical Gamma")
         summary["confirmation"] = confirm_spatial_critical_gamma(scenario, critical)
     return summary
+
+
+def whole_loop_summary(
+    scenario: SpatialScenario, step_map: LoopStepMap | None = None, *, confirm: bool = True
+) -> dict:
+    """The whole loop's one-step map at its equilibrium (spatial_step_map; `step_map` if
+    given): its size, the states left out, its modes, P > 0, its critical Gamma and (with
+    `confirm`) the local nonlinear runs at 0.95 and 1.05 x that Gamma. JSON-serialisable."""
+    step_map = step_map if step_map is not None else loop_step_map(scenario)
+    modes = modal_summary(step_map.A, period=step_map.period)
+    certificate = lyapunov_certificate(step_map.A, discrete=True)
+    certificate.pop("P", None)
+    gamma = scenario.admittance.gamma
+    critical = loop_critical_gamma(scenario, step_map, 0.01 * gamma, 20.0 * gamma)
+    whole = {
+        "states": len(step_map.names),
+        "left_out": step_map.left_out,
+        "fixed_point_residual": step_map.residual,
+        "spectral_radius": modes["spectral_radius"],
+        "stable": modes["stable"],
+        "lyapunov": certificate,
+        "critical_gamma": critical,
+        "margin": critical / gamma if critical else math.inf,
+    }
+    if confirm and critical is not None:
+        whole["confirmation"] = confirm_loop_critical_gamma(
+            scenario, step_map, critical, factors=(0.95, 1.05)
+        )
+    return whole

@@ -1,4 +1,4 @@
-"""`admittance stability` on a spatial-arm scenario: the reduced loop along the normal.
+"""`admittance stability` on a spatial-arm scenario: the whole loop and the reduced one.
 
 The analysis is diagrams/analysis/spatial_arm.py; this writes report.json, report.txt and
 the eigenvalues against the unit circle through the result-folder writer.
@@ -25,7 +25,8 @@ def format_spatial_report(summary: dict) -> str:
         f"Stability of spatial scenario {summary['scenario']}: the loop reduced to the normal, "
         f"sampled at h = {number(summary['period'], ' s')}, x = [{', '.join(summary['states'])}]",
         "",
-        f"Contact equilibrium (the scenario's run, at its end): F = "
+        f"Contact equilibrium (the scenario's run at its end; at a lower Gamma if it does not "
+        f"come to rest: the equilibrium does not depend on Gamma): F = "
         f"{number(equilibrium['force'], ' N', digits=4)} (Fr = "
         f"{number(equilibrium['force_reference'], ' N')})",
         f"  apparent mass along the normal: {number(masses['held'], ' kg', digits=3)} "
@@ -59,6 +60,35 @@ def format_spatial_report(summary: dict) -> str:
         f" = {number(summary['margin'], digits=3)} x the scenario's; the continuous loop's "
         f"(Routh, h -> 0): {number(summary['continuous_critical_gamma'], digits=4)}",
     ]
+    whole = summary.get("whole_loop")
+    if whole is not None:
+        certificate = whole["lyapunov"]
+        lines += [
+            "",
+            f"The whole loop ({whole['states']} states: joints, contact, 6-D PID, law; one "
+            "step differentiated through AutoDiffXd at the equilibrium; left out, feeding "
+            f"nothing: {', '.join(whole['left_out']) or 'none'}):",
+            f"  spectral radius {number(whole['spectral_radius'], digits=6)}, stable = "
+            f"{whole['stable']}; P > 0 = {certificate['positive_definite']}"
+            + (
+                f" (condition number {number(certificate['condition_number'], digits=3)})"
+                if certificate["positive_definite"]
+                else ""
+            ),
+            f"  critical Gamma {number(whole['critical_gamma'], digits=4)} = "
+            f"{number(whole['margin'], digits=3)} x the scenario's (the reduced model's is "
+            f"{number(summary['critical_gamma'], digits=4)})",
+        ]
+        for run in whole.get("confirmation", []):
+            verdict = "stable" if run["stable"] else "unstable"
+            lines.append(
+                f"  nonlinear run from rest at {run['factor']:g} x "
+                f"({number(run['gamma'], digits=4)}), Xr stepped 0.1 mm: {verdict} (force "
+                f"error {number(run['amplitude_first_quarter'], ' N', digits=3)} over its "
+                f"first quarter, {number(run['amplitude_last_quarter'], ' N', digits=3)} "
+                "over its last)"
+            )
+        lines += ["", "The reduced model's critical Gamma, in runs from the scenario's start:"]
     for run in summary.get("confirmation", []):
         verdict = "stable" if run["stable"] else "unstable"
         detail = (

@@ -19,10 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.common import RandomGenerator
-from pydrake.common.value import Value
 from pydrake.math import RigidTransform
-from pydrake.multibody.plant import ContactResults, MultibodyPlant
-from pydrake.systems.framework import Context, Diagram, DiagramBuilder, LeafSystem
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import (
     Demultiplexer,
     RandomSource,
@@ -32,12 +31,12 @@ from pydrake.systems.primitives import (
 from pydrake.trajectories import PiecewisePolynomial
 
 from admittance.diagrams.loop.point import (
-    AddForceLoop,
     AddLoggers,
     AddPointKinematics,
     AddPointPid,
     AddSensorChain,
 )
+from admittance.diagrams.loop.spatial_safety import AddSpatialForceLoop, SpatialSafetyLayer
 from admittance.diagrams.robots.spatial_arm import (
     NORMAL_AXIS,
     TABLE_BODY,
@@ -50,63 +49,17 @@ from admittance.diagrams.robots.spatial_arm import (
 )
 from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.diagrams.scenario.spatial_arm import SPATIAL_COORDINATES, SpatialScenario
+from admittance.systems.directional_contact_force import DirectionalContactForce
 
 __all__ = [
     "BuildSpatialLoop",
     "SetSpatialInitialConditions",
     "SpatialLoop",
-    "TableForce",
     "spatial_force_reference",
     "spatial_plan",
 ]
 
 SIZE = len(SPATIAL_COORDINATES)
-
-
-class TableForce(LeafSystem):
-    """The force of the tool on the table along a unit direction, from the contact results.
-
-        F = - sum_c f_Tc_W . u_W        (N, > 0 while the tool presses along u)
-
-    where f_Tc_W is the force the contact engine applies to the tool at each of its point
-    contacts with the table, and u_W the direction (the control frame's z, the planned
-    inward normal): the ideal sensor's reading, friction included.
-
-    .. pydrake_system::
-
-        name: TableForce
-        input_ports:
-        - contact_results
-        output_ports:
-        - contact_force
-    """
-
-    def __init__(self, plant: MultibodyPlant, direction_W) -> None:
-        super().__init__()
-        self._tool = plant.GetBodyByName(TOOL_BODY).index()
-        self._table = plant.GetBodyByName(TABLE_BODY).index()
-        self._direction = np.asarray(direction_W, dtype=float)
-        self.contact_results_input = self.DeclareAbstractInputPort(
-            "contact_results", Value[ContactResults]()
-        )
-        self.contact_force_output = self.DeclareVectorOutputPort(
-            "contact_force",
-            1,
-            self._CalcForce,
-            prerequisites_of_calc={self.contact_results_input.ticket()},
-        )
-
-    def _CalcForce(self, context, output) -> None:
-        results = self.contact_results_input.Eval(context)
-        force = 0.0
-        for index in range(results.num_point_pair_contacts()):
-            info = results.point_pair_contact_info(index)
-            bodies = (info.bodyA_index(), info.bodyB_index())
-            if bodies == (self._table, self._tool):
-                force -= float(info.contact_force() @ self._direction)
-            elif bodies == (self._tool, self._table):
-                force += float(info.contact_force() @ self._direction)
-        output.SetAtIndex(0, force)
 
 
 @dataclass
@@ -124,7 +77,7 @@ class SpatialLoop:
     admittance: object
     plan: TrajectorySource
     force_reference: TrajectorySource
-    table_force: TableForce
+    table_force: DirectionalContactForce
     # The wrist force/torque sensor (None for the ideal sensor).
     sensor: object
     measured_force_output: object
@@ -132,6 +85,8 @@ class SpatialLoop:
     initial_positions: np.ndarray
     random_sources: list[RandomSource] = field(default_factory=list)
     loggers: dict[str, VectorLogSink] = field(default_factory=dict)
+    # The safety layer at the tool tip (None unless safety.enabled).
+    safety: SpatialSafetyLayer | None = None
 
 
 def _hermite_row(breaks, positions, velocities) -> PiecewisePolynomial:
@@ -195,8 +150,11 @@ def spatial_force_reference(scenario: SpatialScenario) -> PiecewisePolynomial:
     return PiecewisePolynomial.FirstOrderHold(breaks, [[0.0, 0.0, scenario.force_reference]])
 
 
-def BuildSpatialLoop(scenario: SpatialScenario) -> SpatialLoop:
+def BuildSpatialLoop(scenario: SpatialScenario, *, analysis: bool = False) -> SpatialLoop:
     """Wires the arm, its tool, the table and the tool tip's force loop for `scenario`.
+
+    With `analysis`, the loop the linearization steps: the same loop, its noise held at
+    zero and without loggers.
 
     Raises:
         ScenarioError: the model cannot be loaded or a frame is missing (one line).
@@ -207,7 +165,11 @@ def BuildSpatialLoop(scenario: SpatialScenario) -> SpatialLoop:
     point = spatial_point(scenario, plant, initial_positions)
 
     table_force = builder.AddSystem(
-        TableForce(plant, geometry.X_WE.rotation().matrix()[:, NORMAL_AXIS])
+        DirectionalContactForce(
+            plant.GetBodyByName(TOOL_BODY).index(),
+            plant.GetBodyByName(TABLE_BODY).index(),
+            geometry.X_WE.rotation().matrix()[:, NORMAL_AXIS],
+        )
     )
     table_force.set_name("table_force")
     builder.Connect(plant.get_contact_results_output_port(), table_force.contact_results_input)
@@ -217,17 +179,22 @@ def BuildSpatialLoop(scenario: SpatialScenario) -> SpatialLoop:
     split = builder.AddSystem(Demultiplexer([SIZE, SIZE]))
     split.set_name("plan_split")
     builder.Connect(plan.get_output_port(), split.get_input_port())
-    reading = AddSensorChain(builder, point, table_force.contact_force_output, plant=plant)
+    reading = AddSensorChain(
+        builder, point, table_force.contact_force_output, plant=plant, noise=not analysis
+    )
     kinematics = AddPointKinematics(builder, plant, point)
     pid = AddPointPid(builder, plant, point, kinematics, split.get_output_port(1))
     builder.Connect(pid.actuation_output, plant.get_actuation_input_port())
     reference = builder.AddSystem(TrajectorySource(spatial_force_reference(scenario)))
     reference.set_name("force_reference")
-    admittance = AddForceLoop(
+    admittance, safety = AddSpatialForceLoop(
         builder,
+        scenario,
         point,
         pid,
+        plant=plant,
         desired_position_output=split.get_output_port(0),
+        desired_velocity_output=split.get_output_port(1),
         desired_force_output=reference.get_output_port(),
         measured_force_output=reading.measured_force_output,
     )
@@ -243,7 +210,13 @@ def BuildSpatialLoop(scenario: SpatialScenario) -> SpatialLoop:
     }
     if admittance is not None:
         ports["reference_offset"] = admittance.reference_offset_output
-    loggers = AddLoggers(builder, ports, scenario.logging.period or scenario.time_step)
+    if safety is not None:
+        ports.update(safety.log_ports())
+    loggers = (
+        {}
+        if analysis
+        else AddLoggers(builder, ports, scenario.logging.period or scenario.time_step)
+    )
     diagram = builder.Build()
     diagram.set_name("spatial_loop")
     return SpatialLoop(
@@ -263,6 +236,7 @@ def BuildSpatialLoop(scenario: SpatialScenario) -> SpatialLoop:
         initial_positions=initial_positions,
         random_sources=reading.random_sources,
         loggers=loggers,
+        safety=safety,
     )
 
 

@@ -244,20 +244,21 @@ def _load_arm(plant: MultibodyPlant, scenario: SpatialScenario) -> list[str]:
     flange = _frame(plant, arm.flange_frame, "arm.flange_frame")
     joints = [plant.get_joint(i) for i in plant.GetJointIndices()]
     parent_joint = {joint.child_body().index(): joint for joint in joints}
+    # The joints between the flange and the base (walked before any joint is removed: a
+    # removed joint's Python handle points at freed memory).
+    chain, body = set(), flange.body().index()
+    while body in parent_joint and body not in (base.body().index(), plant.world_body().index()):
+        chain.add(parent_joint[body].name())
+        body = parent_joint[body].parent_body().index()
     existing = parent_joint.get(base.body().index())
     if existing is not None and existing.parent_body().index() == plant.world_body().index():
         # The description welds its base to its own "world" link (the UR5's): the
         # scenario's weld replaces it.
-        plant.RemoveJoint(existing)
         joints.remove(existing)
+        plant.RemoveJoint(existing)
     plant.WeldFrames(plant.world_frame(), base, RigidTransform(arm.base_position))
     efforts = _efforts_from_file(file)
     actuated = {plant.get_joint_actuator(i).joint().name() for i in plant.GetJointActuatorIndices()}
-    # The joints between the flange and the world.
-    chain, body = set(), flange.body().index()
-    while body in parent_joint and body != plant.world_body().index():
-        chain.add(parent_joint[body].name())
-        body = parent_joint[body].parent_body().index()
     # Moving joints: those that move the flange get an actuator if they have none; the
     # others become welds at their zero position.
     rigid = []

@@ -14,6 +14,16 @@ it:
 * ``orientation_error_max`` (degrees): the angle between the tool's orientation and the
   plan's, |log(R_d R^T)| (the plan holds the tool along the planned normal).
 
+With ``safety.enabled`` a ``safety`` section adds the layer's numbers at the start (the
+apparent mass along the normal, the damper, the approach bound v_max, ...), the tool tip's
+speed along the normal at the last sample before the first contact
+(``first_contact_speed``, against ``approach_speed``), the largest force within
+FIRST_CONTACT_WINDOW of the first contact (``first_contact_peak_force``, against
+``max_force``), each detection of the sensor monitor (time, kind), the final stiffness
+estimate and gain scale; the timeseries gains ``force_observed`` (the momentum observer's
+force along the normal), ``force_trusted``, ``stiffness_estimate``, ``gain_scale`` and one
+``fault_<kind>`` column per flag.
+
 The metrics every robot shares (``peak_force``, ``steady_state_force_error`` over the last
 second, ``rms_force_error`` from the end of the force ramp, ``first_contact_time``,
 ``settling_time`` from the end of the ramp) come from run.metrics.
@@ -33,6 +43,7 @@ from admittance.diagrams.loop.spatial_arm import (
     SetSpatialInitialConditions,
     SpatialLoop,
 )
+from admittance.diagrams.robots.spatial_arm import NORMAL_AXIS
 from admittance.diagrams.run.engine import RunResult, finish_run, simulate_loop
 from admittance.diagrams.run.metrics import (
     contact_loss_indices,
@@ -44,11 +55,22 @@ from admittance.diagrams.run.metrics import (
     until_mask,
 )
 from admittance.diagrams.scenario.spatial_arm import SPATIAL_COORDINATES, SpatialScenario
+from admittance.systems.fault_detector import FAULT_FLAGS
 from admittance.systems.spatial_kinematics import orientation_error
 
-__all__ = ["SpatialResult", "compute_spatial_metrics", "run_spatial", "spatial_verdict_line"]
+__all__ = [
+    "FIRST_CONTACT_WINDOW",
+    "SpatialResult",
+    "compute_spatial_metrics",
+    "run_spatial",
+    "spatial_safety_metrics",
+    "spatial_verdict_line",
+]
 
 SIZE = len(SPATIAL_COORDINATES)
+# The first contact's impact: its peak comes a half period of the contact mode after the
+# touch (25 ms for 6.6 kg on 1e5 N/m), well inside this window, s.
+FIRST_CONTACT_WINDOW = 0.1
 
 
 @dataclass
@@ -67,6 +89,11 @@ class SpatialResult(RunResult):
     wall_time: float
     steps: int
     metrics: dict = field(default_factory=dict)
+    # (N,): the tool tip's speed along the normal (the control frame's z), m/s.
+    normal_speed: np.ndarray | None = None
+    # With safety.enabled: the layer's logs ("observed_force", "gain_scale") and its
+    # numbers at the start ("numbers"); empty otherwise.
+    safety: dict = field(default_factory=dict)
 
     @property
     def path_error(self) -> np.ndarray:
@@ -100,6 +127,13 @@ class SpatialResult(RunResult):
         columns["zr"] = self.reference_offset
         columns["path_error"] = self.path_error
         columns["orientation_error"] = self.orientation_error
+        if self.safety:
+            for name in ("observed", "trusted"):
+                columns[f"force_{name}"] = self.safety[f"{name}_force"][:, 0]
+            for name in ("stiffness_estimate", "gain_scale"):
+                columns[name] = self.safety[name][:, 0]
+            for column, kind in enumerate(FAULT_FLAGS):
+                columns[f"fault_{kind}"] = self.safety["fault_flags"][:, column]
         return columns
 
 
@@ -119,7 +153,7 @@ def compute_spatial_metrics(result: SpatialResult) -> dict:
     after_ramp = time >= ramp_end
     last = final_window(time)
     settled = settled_from(time, force, reference, ramp_end)
-    return {
+    metrics = {
         "kind": "spatial",
         "controller": scenario.controller.kind,
         "force_reference": reference,
@@ -142,6 +176,32 @@ def compute_spatial_metrics(result: SpatialResult) -> dict:
         "steps": result.steps,
         "samples": int(time.size),
     }
+    if result.safety:
+        metrics["safety"] = spatial_safety_metrics(result)
+    return metrics
+
+
+def spatial_safety_metrics(result: SpatialResult) -> dict:
+    """metrics.json's ``safety`` section (see the module's docstring)."""
+    logs, force = result.safety, result.force
+    metrics = {key: float(value) for key, value in logs["numbers"].items() if key != "in_contact"}
+    metrics["max_force"] = result.scenario.safety.max_force
+    touching = np.nonzero(force > 0.0)[0]
+    if touching.size and touching[0] > 0:
+        touch = result.time[touching[0]]
+        window = (result.time >= touch) & (result.time <= touch + FIRST_CONTACT_WINDOW)
+        metrics["first_contact_speed"] = float(result.normal_speed[touching[0] - 1])
+        metrics["first_contact_peak_force"] = float(np.max(force[window]))
+    metrics.update(logs.get("first_contact", {}))
+    flags = logs["fault_flags"] > 0.5
+    rising = flags & ~np.vstack([np.zeros((1, flags.shape[1]), bool), flags[:-1]])
+    metrics["detections"] = [
+        {"time": float(result.time[row]), "kind": FAULT_FLAGS[column]}
+        for row, column in zip(*np.nonzero(rising), strict=True)
+    ]
+    metrics["final_stiffness_estimate"] = float(logs["stiffness_estimate"][-1, 0])
+    metrics["final_gain_scale"] = float(logs["gain_scale"][-1, 0])
+    return metrics
 
 
 def run_spatial(
@@ -157,6 +217,14 @@ def run_spatial(
         SimulationDivergedError: the run blew up (the exception carries the partial result).
     """
     loop = loop or BuildSpatialLoop(scenario)
+    numbers = {}
+
+    def initialize(context) -> None:
+        SetSpatialInitialConditions(loop, context)
+        if loop.safety is not None:
+            loop.safety.initialize(context)
+            numbers.update(loop.safety.numbers(context))
+
     run = simulate_loop(
         loop.diagram,
         loop.plant,
@@ -164,21 +232,23 @@ def run_spatial(
         # is continuous, integrated between the steps.
         SimulatorConfig(),
         scenario.duration,
-        initialize=lambda context: SetSpatialInitialConditions(loop, context),
+        initialize=initialize,
         progress=progress,
         solver="simulation",
     )
     steps = int(round(run.context.get_time() / scenario.time_step))
-    return finish_run(_collect(loop, run.context, run.wall_time, steps), run.divergence)
+    result = _collect(loop, run.context, run.wall_time, steps, numbers)
+    return finish_run(result, run.divergence)
 
 
-def _collect(loop: SpatialLoop, context, wall_time: float, steps: int) -> SpatialResult:
+def _collect(loop: SpatialLoop, context, wall_time: float, steps: int, numbers) -> SpatialResult:
     def logged(name: str) -> np.ndarray:
         return loop.loggers[name].FindLog(context).data().T
 
     sample_times = loop.loggers["state"].FindLog(context).sample_times()
     count = sample_times.size
     states = logged("state")
+    kinematics = logged("kinematics")
     if "reference_offset" in loop.loggers:
         offset = logged("reference_offset")[:, 2]
     else:
@@ -190,14 +260,32 @@ def _collect(loop: SpatialLoop, context, wall_time: float, steps: int) -> Spatia
         force_measured=logged("measured_force")[:, 0],
         force_reference=logged("force_reference")[:, 0],
         plan=logged("plan")[:, :SIZE],
-        pose=logged("kinematics")[:, :SIZE],
+        pose=kinematics[:, :SIZE],
         reference_offset=offset,
         joint_positions=states[:, : loop.plant.num_positions()],
         wall_time=wall_time,
         steps=steps,
+        normal_speed=kinematics[:, SIZE + NORMAL_AXIS],
     )
+    if loop.safety is not None:
+        result.safety = {name: logged(name) for name in loop.safety.log_ports()}
+        result.safety["numbers"] = numbers
+        result.safety["first_contact"] = _first_contact_bound(loop, result, states)
     result.metrics = compute_spatial_metrics(result)
     return result
+
+
+def _first_contact_bound(loop: SpatialLoop, result: SpatialResult, states) -> dict:
+    """The approach bound v_max and the apparent mass the layer derives at the last sample
+    before the first contact (empty if the run never touches the table)."""
+    touching = np.nonzero(result.force > 0.0)[0]
+    if touching.size == 0 or touching[0] == 0:
+        return {}
+    numbers = loop.safety.law.numbers_at(states[touching[0] - 1], result.scenario.force_reference)
+    return {
+        "first_contact_approach_bound": float(numbers["approach_speed"]),
+        "first_contact_apparent_mass": float(numbers["apparent_mass"]),
+    }
 
 
 def spatial_verdict_line(result: SpatialResult) -> str:

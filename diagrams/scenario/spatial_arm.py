@@ -28,6 +28,7 @@ from admittance.diagrams.scenario.sections import (
     ControllerSection,
     LoggingConfig,
     PidSection,
+    SafetyConfig,
     SensorSection,
 )
 from admittance.diagrams.scenario.validation import (
@@ -50,6 +51,7 @@ __all__ = [
     "SpatialControllerConfig",
     "SpatialPidConfig",
     "SpatialPostureConfig",
+    "SpatialSafetyConfig",
     "SpatialScenario",
     "SpatialSensorConfig",
     "SurfaceConfig",
@@ -221,6 +223,17 @@ class SpatialSensorConfig(SensorSection):
 
 
 @dataclass
+class SpatialSafetyConfig(SafetyConfig):
+    # The shared keys (enabled; max_stiffness, Ke_max of the table and the tool in
+    # series, N/m; stability_margin; damping_ratio; payload_mass at the tool tip, kg), and:
+    # Fmax, the bound on the force along the planned normal, N (the planar arm's is
+    # admittance.max_force): the approach speed v_max is the one whose impact on a table
+    # of max_stiffness peaks at it, with the arm's apparent mass along the normal with the
+    # PID's other axes held (docs/safety.md, section 10).
+    max_force: float = 20.0
+
+
+@dataclass
 class SpatialScenario:
     # Scenario kind: always "spatial" here.
     kind: str = "spatial"
@@ -242,6 +255,7 @@ class SpatialScenario:
     admittance: SpatialAdmittanceConfig = field(default_factory=SpatialAdmittanceConfig)
     pid: SpatialPidConfig = field(default_factory=SpatialPidConfig)
     sensor: SpatialSensorConfig = field(default_factory=SpatialSensorConfig)
+    safety: SpatialSafetyConfig = field(default_factory=SpatialSafetyConfig)
     logging: LoggingConfig = field(default_factory=LoggingConfig)
     # Name of the scenario (informational).
     name: str = "custom_spatial"
@@ -307,6 +321,11 @@ SPATIAL_RANGES: dict[str, Range] = {
     "sensor.filter_cutoff": Range("[0, 1e6]", "Hz", text="0 (none) or in (0, 1e6] Hz"),
     "sensor.period": Range("[1e-4, 0.1]", or_zero=True, text="0 (time_step) or in [1e-4, 0.1] s"),
     "logging.period": RANGES["logging.period"],
+    "safety.max_stiffness": Range("(0, 1e7]", "N/m"),
+    "safety.max_force": Range("(0, 1000]", "N"),
+    "safety.stability_margin": RANGES["safety.stability_margin"],
+    "safety.damping_ratio": RANGES["safety.damping_ratio"],
+    "safety.payload_mass": RANGES["safety.payload_mass"],
 }
 
 _NOT_IN_A_NAME = re.compile(r"[/\\\x00-\x1f]")
@@ -404,7 +423,26 @@ def validate_spatial(scenario: SpatialScenario) -> SpatialScenario:
             "must exceed Fr)",
             s.admittance.max_push,
         )
+    _check_spatial_safety(s)
     return scenario
+
+
+def _check_spatial_safety(s: SpatialScenario) -> None:
+    """What the safety layer needs of the rest of the scenario (safety.enabled)."""
+    if not s.safety.enabled:
+        return
+    require(
+        s.controller.kind == "optimal_admittance",
+        "safety.enabled",
+        "used with the paper's controller (controller.kind optimal_admittance)",
+        s.safety.enabled,
+    )
+    require(
+        s.safety.max_force > s.force_reference,
+        "safety.max_force",
+        f"> force_reference = {s.force_reference:g} N (the bound must leave room for Fr)",
+        s.safety.max_force,
+    )
 
 
 def load_spatial_scenario(
