@@ -50,10 +50,16 @@ AXES = ("x", "y", "z", "rx", "ry", "rz")
 def normal_model_at(scenario: SpatialScenario, positions, period: float) -> NormalModel:
     """``analysis.spatial_arm.normal_model`` of `scenario` with the arm at `positions`,
     sampled at `period`. A scenario with the wrist sensor is read with the ideal one (the
-    reduced model has no sensor filter: its lag takes some of the margin)."""
-    if scenario.sensor.kind != "ideal":
+    reduced model has no sensor filter: its lag takes some of the margin), and one with
+    the safety layer without it (the layer's bounds act only near them).
+
+    Raises:
+        ScenarioError: the controller is not the paper's law (one line).
+    """
+    if scenario.sensor.kind != "ideal" or scenario.safety.enabled:
         scenario = copy.deepcopy(scenario)
         scenario.sensor.kind = "ideal"
+        scenario.safety.enabled = False
     model, _ = normal_model(scenario, positions)
     return dataclasses.replace(model, period=float(period))
 
@@ -166,27 +172,22 @@ def check_sampled_gains(
     gamma: float | None = None,
     model: NormalModel | None = None,
     kd=None,
+    force_loop: bool = True,
 ) -> SampledGainCheck:
     """The scenario's PID and law checked at `period` with the command `delay` periods
     late, the arm at the state of `plant_context` (`jacobian`: the tool tip's 6 x n
     Jacobian in the control frame there). `gamma` overrides the scenario's; `model` (a
     NormalModel at another period) saves building the scenario's loop again; `kd` (6
-    values) overrides pid.kd in the damper's check."""
+    values) overrides pid.kd in the damper's check; without `force_loop` (a law other than
+    the paper's) only the damper is checked (critical_gamma None)."""
     mass_matrix = plant.CalcMassMatrix(plant_context)
     jacobian = np.asarray(jacobian, dtype=float)
     kd = np.asarray(scenario.pid.kd if kd is None else kd, dtype=float)
-    if model is None:
+    critical = None
+    if force_loop and model is None:
         model = normal_model_at(scenario, plant.GetPositions(plant_context), period)
-    model = dataclasses.replace(model, period=float(period))
-    try:
-        critical = critical_gain(
-            lambda value: delayed_normal_map(model.with_gamma(value), delay),
-            1e-9,
-            1e-2,
-            period=period,
-        )
-    except ValueError:  # the sampled PD on the contact is unstable at any Gamma
-        critical = 0.0
+    if force_loop:
+        critical = _critical_gamma(dataclasses.replace(model, period=float(period)), delay)
     return SampledGainCheck(
         period=float(period),
         delay_periods=int(delay),
@@ -196,3 +197,16 @@ def check_sampled_gains(
         gamma=float(scenario.admittance.gamma if gamma is None else gamma),
         critical_gamma=critical,
     )
+
+
+def _critical_gamma(model: NormalModel, delay: int) -> float | None:
+    """The force loop's critical Gamma at `delay` periods (0.0: unstable at any)."""
+    try:
+        return critical_gain(
+            lambda value: delayed_normal_map(model.with_gamma(value), delay),
+            1e-9,
+            1e-2,
+            period=model.period,
+        )
+    except ValueError:  # the sampled PD on the contact is unstable at any Gamma
+        return 0.0

@@ -161,7 +161,8 @@ class SpatialControlLaw:
         if positions is None:
             positions = self.plant.GetPositions(self._plant_context)
         self.plant.SetPositions(context, np.asarray(positions, dtype=float))
-        if self._normal_model is None:
+        paper_law = self.scenario.controller.kind == "optimal_admittance"
+        if self._normal_model is None and paper_law:
             model = normal_model_at(self.scenario, positions, period)
             if self.position_mode:  # the inner loop is the joint controller's
                 model = dataclasses.replace(
@@ -180,6 +181,7 @@ class SpatialControlLaw:
             model=self._normal_model,
             # In position mode the PID does not run: the joint controller is the robot's.
             kd=np.zeros(SIZE) if self.position_mode else None,
+            force_loop=paper_law,
         )
 
     def _build_law(self) -> None:
