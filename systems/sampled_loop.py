@@ -43,7 +43,13 @@ from pydrake.systems.primitives import LinearSystem
 
 from admittance.systems import contact_model
 
-__all__ = ["SampledContactLoop", "sampled_loop_matrix", "spectral_radius"]
+__all__ = [
+    "SampledContactLoop",
+    "damper_gain",
+    "delayed_damper_limit",
+    "sampled_loop_matrix",
+    "spectral_radius",
+]
 
 
 def _zero_order_hold(A: np.ndarray, B: np.ndarray, duration: float):
@@ -261,3 +267,49 @@ class SampledContactLoop:
                 return 0.5 * (low + high)
             low = high
         return None
+
+
+def damper_gain(jacobian, mass_matrix, kd, period: float) -> float:
+    """h max eig(J M^-1 J^T Kd): the sampled PID's damping on the arm, per period.
+
+    The sampled PID holds its damping force -Kd dX/dt over each period h. On the arm's
+    task-space inertia Lambda = (J M^-1 J^T)^-1 that force alone steps each of the task's
+    velocity modes by -h lambda_i per period (lambda_i the eigenvalues of J M^-1 J^T Kd, real
+    and positive for a diagonal Kd > 0); :func:`delayed_damper_limit` says how large h
+    lambda may be when the force comes one or more periods late. A necessary condition:
+    the stiffness and the contact take some of that room.
+    """
+    jacobian = np.atleast_2d(np.asarray(jacobian, dtype=float))
+    mobility = jacobian @ np.linalg.solve(np.asarray(mass_matrix, dtype=float), jacobian.T)
+    return float(period * np.max(np.linalg.eigvals(mobility @ np.diag(kd)).real))
+
+
+@functools.lru_cache(maxsize=64)
+def delayed_damper_limit(delay_periods: int) -> float:
+    """The largest damper gain a = h lambda at which one velocity mode stays stable when
+    its damping force is computed from the velocity `delay_periods` (N) periods old:
+    v_k+1 = v_k - a v_k-N, the loop of :func:`sampled_loop_matrix` on an integrator
+    (ds/dt = u, h = 1) with its reading N periods late; bisection on its spectral radius to
+    1e-9. N = 0 gives 2 (the damper read at its own tick), N = 1 gives 1 (z^2 - z + a: its
+    constant term a reaches 1), and it falls as 2 sin(pi / (2 (2 N + 1))) beyond.
+    """
+    if delay_periods < 0:
+        raise ValueError(f"delay_periods must be >= 0, got {delay_periods}")
+
+    def stable(gain: float) -> bool:
+        loop = sampled_loop_matrix(
+            [[0.0]],
+            [[1.0]],
+            [[1.0]],
+            period=1.0,
+            latency=float(delay_periods),
+            state_gain=[0.0],
+            measurement_gain=-gain,
+        )
+        return spectral_radius(loop) < 1.0 - 1e-12
+
+    low, high = 0.0, 2.0 + 1e-6
+    while high - low > 1e-9:
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if stable(middle) else (low, middle)
+    return 0.5 * (low + high)

@@ -66,8 +66,9 @@ def station_command(args, progress) -> int:
     if args.pacer:
         return _pace(config, lcm, out, args, progress)
     progress(f"station: {config.name}, {config.mode} mode, on {args.lcm}")
+    sliders = _sliders(config, lcm, progress) if config.meshcat else None
     with stop_on_signals() as stop:
-        run = run_station(config, lcm, stop=stop)
+        run = run_station(config, lcm, stop=stop, sliders=sliders)
     metrics = station_metrics(run, config)
     with result_folder(out, overwrite=args.force) as folder:
         data = np.column_stack([run.times, run.force, run.tip_height, run.hold])
@@ -99,6 +100,25 @@ def station_command(args, progress) -> int:
     )
     print(folder.describe(out))
     return 0
+
+
+def _sliders(config, lcm, progress):
+    """The station's Meshcat (localhost) with the law's sliders."""
+    from admittance.diagrams.hardware.config import spatial_scenario
+    from admittance.diagrams.hardware.sliders import ParameterSliders, station_meshcat
+
+    meshcat = station_meshcat()
+    law = spatial_scenario(config).admittance
+    sliders = ParameterSliders(
+        meshcat,
+        lcm,
+        force_reference=config.force_reference,
+        gamma=law.gamma,
+        alpha=law.alpha,
+        max_force=config.max_force,
+    )
+    progress(f"meshcat: {meshcat.web_url()} (sliders: Fr, Gamma, alpha, Fmax)")
+    return sliders
 
 
 def _pace(config, lcm, out: Path, args, progress) -> int:
@@ -144,7 +164,10 @@ def control_command(args, progress) -> int:
             failure, outcome = str(error), "station gone"
     trace = controller.trace
     with result_folder(out, overwrite=args.force) as folder:
-        folder.write_json("timing.json", controller.timing.summary())
+        folder.write_json(
+            "timing.json",
+            {**controller.timing.summary(), "stability": controller.stability_summary()},
+        )
         folder.write_text(
             "events.log",
             "".join(f"t={e.time:.4f} s  {e.what}\n" for e in controller.events),

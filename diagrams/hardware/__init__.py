@@ -5,7 +5,9 @@ from admittance.diagrams.hardware.config import *  # noqa: F403
 from admittance.diagrams.hardware.control_law import *  # noqa: F403
 from admittance.diagrams.hardware.controller import *  # noqa: F403
 from admittance.diagrams.hardware.interface import *  # noqa: F403
+from admittance.diagrams.hardware.joint_command import *  # noqa: F403
 from admittance.diagrams.hardware.messages import *  # noqa: F403
 from admittance.diagrams.hardware.pacer import *  # noqa: F403
+from admittance.diagrams.hardware.sliders import *  # noqa: F403
 from admittance.diagrams.hardware.station import *  # noqa: F403
 from admittance.diagrams.hardware.timing import *  # noqa: F403

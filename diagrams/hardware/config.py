@@ -62,6 +62,13 @@ class HardwareConfig:
     station_timeout: float = 0.5
     # A wrench older than this (by its timestamp against the status clock) is stale, s.
     wrench_timeout: float = 0.01
+    # The controller checks its gains against the sampled loop at the start (refusing
+    # gains beyond its bounds) and while it runs (holding the law); false: it only logs
+    # what the checks find (to measure a loop beyond the bounds on a simulated station).
+    gain_check: bool = True
+    # The station serves Meshcat on localhost: the arm, and sliders for Fr, Gamma, alpha
+    # and Fmax that publish the parameter message when they move.
+    meshcat: bool = False
     # --- from the scenario (set by load_hardware_config; not keys of the section) ---
     # The scenario: a built-in name or a YAML file, and the overrides given to it.
     scenario: str = "panda_surface_press"
@@ -88,6 +95,8 @@ _SECTION_KEYS = (
     "status_timeout_periods",
     "station_timeout",
     "wrench_timeout",
+    "gain_check",
+    "meshcat",
 )
 _POSITIVE = (
     "command_timeout",

@@ -35,6 +35,12 @@ import numpy as np
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import Demultiplexer, PassThrough, TrajectorySource
 
+from admittance.diagrams.analysis.sampled_gains import (
+    SampledGainCheck,
+    check_sampled_gains,
+    normal_model_at,
+)
+from admittance.diagrams.hardware.joint_command import DifferentialIk, tool_stiffness
 from admittance.diagrams.loop.point import (
     AddCommandedPosition,
     AddForceController,
@@ -54,6 +60,7 @@ from admittance.diagrams.robots.spatial_arm import (
     spatial_point,
 )
 from admittance.diagrams.scenario.spatial_arm import SPATIAL_COORDINATES, SpatialScenario
+from admittance.systems.spatial_kinematics import SpatialFrameKinematics
 
 __all__ = ["SpatialControlLaw", "start_positions"]
 
@@ -77,8 +84,18 @@ class SpatialControlLaw:
     docstring); :meth:`step` is one sample."""
 
     def __init__(
-        self, scenario: SpatialScenario, *, max_force: float = math.inf, force_bound_gain=4.0
+        self,
+        scenario: SpatialScenario,
+        *,
+        max_force: float = math.inf,
+        force_bound_gain=4.0,
+        joint_gains=None,
     ) -> None:
+        """`joint_gains` (plant, positions) -> the robot's joint controller's gains
+        (``joint_stiffness`` and ``joint_damping``, one per joint) selects position mode:
+        the law's K is then their stiffness seen at the tool at the start
+        (``joint_command.tool_stiffness``) and :meth:`step` returns joint positions from
+        the differential inverse kinematics."""
         self.scenario = scenario
         builder = DiagramBuilder()
         plant, _, _ = AddSpatialArm(builder, scenario)
@@ -92,6 +109,7 @@ class SpatialControlLaw:
         kinematics = AddPointKinematics(builder, plant, self.point)
         self.pid = AddPointPid(builder, plant, self.point, kinematics, split.get_output_port(1))
         commanded = AddCommandedPosition(builder, self.point, split.get_output_port(0), self.pid)
+        self._commanded = commanded
         offset = builder.AddNamedSystem("reference_offset", PassThrough(SIZE))
         builder.Connect(offset.get_output_port(), commanded.get_input_port(1))
         builder.ExportInput(offset.get_input_port(), "reference_offset")
@@ -109,8 +127,62 @@ class SpatialControlLaw:
         self.alpha = self.point.law.alpha
         self.max_force = float(max_force)
         self.force_bound_gain = float(force_bound_gain)
+        self._kinematics = SpatialFrameKinematics(
+            plant,
+            self.point.frame,
+            coordinates=SPATIAL_COORDINATES,
+            expressed_in=self.point.expressed_in,
+        )
+        self._normal_model = None
+        self.position_mode = joint_gains is not None
+        self._law_point = self.point
+        self.ik = None
+        if self.position_mode:
+            self.ik = DifferentialIk(
+                plant, self.point.frame, self.point.expressed_in, self.initial_positions
+            )
+            _, jacobian = self.ik.pose_and_jacobian(self.initial_positions)
+            gains = joint_gains(plant, self.initial_positions)
+            self.tool_stiffness = tool_stiffness(jacobian, gains["joint_stiffness"])
+            self.tool_damping = tool_stiffness(jacobian, gains["joint_damping"])
+            kp = list(self.point.kp)
+            kp[NORMAL_AXIS] = self.tool_stiffness
+            self._law_point = dataclasses.replace(self.point, kp=kp)
+        self._started = False
         self._law = None
         self._build_law()
+
+    def check_gains(self, period: float, delay: int = 1, positions=None) -> SampledGainCheck:
+        """The PID's and the law's gains (Gamma as it is now) against the sampled loop at
+        `period` with the command `delay` periods late (``analysis.sampled_gains``), the arm
+        at `positions` (None: where the model's state is now). The apparent mass along the
+        normal is the one at the first check (it moves little over a press)."""
+        context = self.plant.CreateDefaultContext()
+        if positions is None:
+            positions = self.plant.GetPositions(self._plant_context)
+        self.plant.SetPositions(context, np.asarray(positions, dtype=float))
+        paper_law = self.scenario.controller.kind == "optimal_admittance"
+        if self._normal_model is None and paper_law:
+            model = normal_model_at(self.scenario, positions, period)
+            if self.position_mode:  # the inner loop is the joint controller's
+                model = dataclasses.replace(
+                    model, kp=self.tool_stiffness, kd=self.tool_damping, ki=0.0
+                )
+            self._normal_model = model
+        self._kinematics.set_state(np.concatenate([positions, np.zeros(len(positions))]))
+        return check_sampled_gains(
+            self.scenario,
+            self.plant,
+            context,
+            self._kinematics.jacobian(),
+            period=period,
+            delay=delay,
+            gamma=self.gamma,
+            model=self._normal_model,
+            # In position mode the PID does not run: the joint controller is the robot's.
+            kd=np.zeros(SIZE) if self.position_mode else None,
+            force_loop=paper_law,
+        )
 
     def _build_law(self) -> None:
         """(Re)builds the force law with the current Gamma, alpha and Fmax, carrying the
@@ -123,7 +195,7 @@ class SpatialControlLaw:
             force_bound_gain=self.force_bound_gain,
         )
         builder = DiagramBuilder()
-        system = AddForceController(builder, dataclasses.replace(self.point, law=law))
+        system = AddForceController(builder, dataclasses.replace(self._law_point, law=law))
         diagram = builder.Build()
         context = diagram.CreateDefaultContext()
         law_context = system.GetMyMutableContextFromRoot(context)
@@ -182,18 +254,30 @@ class SpatialControlLaw:
         """`samples` samples at the status (time, q, v) with the measured force (NaN: a
         failed measurement, the law then holds its offset): one per period since the
         previous status answered (a status lost or skipped leaves its period to the next,
-        its inputs held); returns the joint torques, N m."""
+        its inputs held); returns the joint torques, N m, or in position mode the joint
+        positions, rad (the inverse kinematics of Xc = Xd + Xr, Xr the offset the law held
+        since the previous sample, as the PID reads it)."""
         self.set_state(time, q, v)
+        if self.position_mode and not self._started:
+            self.ik.reset(q)
+        self._started = True
         system, _, law_context = self._law
         system.desired_force_input.FixValue(law_context, [self.desired_force(time)])
         system.measured_force_input.FixValue(law_context, [force])
         for _ in range(max(1, samples)):
             self._sample(system, law_context)
+        if self.position_mode:
+            adder_context = self._commanded.GetMyContextFromRoot(self.context)
+            return self.ik.step(self._commanded.get_output_port().Eval(adder_context))
         return self.pid.actuation_output.Eval(self._pid_context).copy()
 
     def _sample(self, system, law_context) -> None:
         held = system.reference_offset_output.Eval(law_context)
         self._offset_input.FixValue(self.context, held)
+        if self.position_mode:  # the law alone: the joint controller is the robot's
+            law_update = system.EvalUniquePeriodicDiscreteUpdate(law_context).Clone()
+            law_context.get_mutable_discrete_state().SetFrom(law_update)
+            return
         law_update = system.EvalUniquePeriodicDiscreteUpdate(law_context)
         pid_update = self.pid.EvalUniquePeriodicDiscreteUpdate(self._pid_context)
         # (Both are computed before either is applied.)

@@ -20,6 +20,15 @@ Watchdogs, each logged with its time:
   fresh command, holds the arm if the silence lasts; zero torque would drop the press and
   the law, seeing the force fall, would wind up;
 * no status for ``station_timeout`` s: the station is gone (``StationGoneError``);
+* the gains against the sampled loop (``analysis.sampled_gains``: the PID's damping through
+  the arm and the force loop along the normal, with the command one or more periods
+  late): at the start at the nominal rate with the one-period delay of a controller that
+  answers within the period (gains beyond its bounds: ``ScenarioError``, one line naming
+  the keys and the fix); then once per second of the status clock at the period and the
+  delay the cycles measured (p99 of the command's hold time, and of the statuses that came
+  while a command was computed: ``timing.CycleTiming.measured``): beyond the bounds the
+  law holds its offset, as for a failed sensor, until a check passes; a parameter message
+  asking for a Gamma above the critical one is refused;
 * SIGINT or SIGTERM (the caller's ``stop``): the hold command once more, then a clean stop;
   the run's end (the status clock at ``duration``, or a station that falls silent within
   ``END_SLACK`` of it) ends it the same way.
@@ -37,8 +46,10 @@ from drake import lcmt_force_torque, lcmt_panda_command, lcmt_panda_status
 
 from admittance.diagrams.hardware.config import HardwareConfig, spatial_scenario
 from admittance.diagrams.hardware.control_law import SpatialControlLaw
+from admittance.diagrams.hardware.interface import joint_gains
 from admittance.diagrams.hardware.messages import CHANNELS, decode_parameters
 from admittance.diagrams.hardware.timing import CycleTiming
+from admittance.diagrams.scenario.schema import ScenarioError
 
 __all__ = ["AdmittanceController", "ControllerEvent", "StationGoneError"]
 
@@ -48,6 +59,10 @@ NUM_JOINTS = 7
 START_TIMEOUT = 60.0
 # A station that falls silent this close to the run's end has ended the run, s.
 END_SLACK = 0.1
+# The status clock's interval between two checks of the gains against the measured loop, s.
+CHECK_INTERVAL = 1.0
+# What timing.json's stability history keeps of each check.
+HISTORY_KEYS = ("time", "period", "latency", "delay_periods", "damper_gain", "verdict")
 
 
 class StationGoneError(RuntimeError):
@@ -93,20 +108,38 @@ class AdmittanceController:
         cpu_clock: Callable[[], float] = time.thread_time,
         newest_only: bool = False,
     ) -> None:
-        if config.mode != "torque":
-            raise ValueError("the controller runs the torque interface only (mode: torque)")
         self.config = config
         self.period = 1.0 / config.rate
         self._lcm = lcm
         self._clock = clock
         self._cpu_clock = cpu_clock
+        self.position_mode = config.mode == "position"
+        scenario = spatial_scenario(config)
+        gains = None
+        if self.position_mode:  # the robot's joint controller, as the station runs it
+
+            def gains(plant, positions):
+                return joint_gains(plant, positions, config, self.period)
+
         self.law = SpatialControlLaw(
-            spatial_scenario(config),
+            scenario,
             max_force=config.max_force,
             force_bound_gain=config.force_bound_gain,
+            joint_gains=gains,
         )
+        self.start_check = self.law.check_gains(self.period, 1, self.law.initial_positions)
+        problem = self.start_check.problem()
+        if problem is not None and config.gain_check:
+            raise ScenarioError(problem + " (docs/hardware.md, the sampled loop)")
+        self.last_check = self.start_check
+        self.gain_checks: list[dict] = []
+        self._checked_from = 0
+        self._next_check = CHECK_INTERVAL
+        self._gains_fault = False
         self.timing = CycleTiming(self.period)
         self.events: list[ControllerEvent] = []
+        if problem is not None:
+            self.events.append(ControllerEvent(0.0, clock(), f"gain check (off): {problem}"))
         self.trace = _Trace()
         self.time: float | None = None  # the status clock, s
         self.last_command: lcmt_panda_command | None = None
@@ -145,6 +178,13 @@ class AdmittanceController:
         }
         if not merged["max_force"] > merged["force_reference"]:
             self.log(f"parameters rejected: max_force must be above force_reference ({merged})")
+            return
+        critical = self.last_check.critical_gamma
+        if "gamma" in values and critical is not None and values["gamma"] >= critical:
+            self.log(
+                f"parameters rejected: gamma={values['gamma']:g} is above the sampled loop's "
+                f"critical Gamma {critical:.3g} at the measured rate"
+            )
             return
         self.law.set_parameters(**values)
         changes = ", ".join(f"{k}={v:g}" for k, v in sorted(values.items()))
@@ -208,40 +248,102 @@ class AdmittanceController:
             self.log("start: first status")
         self.law.set_state(self.time, q, v)
         force = self._measured_force()
+        if self._gains_fault:
+            force = None  # the law holds its offset
         # One sample per period since the last status answered (a lost status's period
         # is the next one's), at most the status watchdog's count.
         samples = min(max(1, int(round(dt / self.period))), self.config.status_timeout_periods)
-        tau = self.law.step(self.time, q, v, math.nan if force is None else force, samples)
+        command = self.law.step(self.time, q, v, math.nan if force is None else force, samples)
         offset = self.law.offset
-        self._publish(status.utime, tau)
-        self.timing.record(arrival, self._clock(), self._cpu_clock() - cpu)
+        self._publish(status.utime, command)
+        self.timing.record(arrival, self._clock(), self._cpu_clock() - cpu, self.time)
         self.trace.times.append(self.time)
         self.trace.force.append(float("nan") if force is None else force)
         self.trace.offset.append(offset)
+        if self.time >= self._next_check:
+            self._next_check = self.time + CHECK_INTERVAL
+            self.check_measured_loop()
         if self.time >= self.config.duration - 1.5 * self.period:  # the station's last
             self.finished = True
 
-    def _publish(self, utime: int, torque: np.ndarray) -> None:
+    def check_measured_loop(self) -> dict | None:
+        """The gains against the sampled loop at the period and delay the cycles since the
+        last check measured (see the module docstring); logs a change of verdict; returns
+        the check's figures (None: too few cycles)."""
+        measured = self.timing.measured(self._checked_from)
+        if measured is None:
+            return None
+        self._checked_from = self.timing.cycles
+        nominal = measured["delay_periods"]
+        # Delay in periods of the command's hold time (a skipped status holds it longer).
+        period = max(measured["period"], self.period)
+        delay = max(1, math.ceil(nominal * self.period / period - 1e-9))
+        check = self.law.check_gains(period, delay)
+        self.last_check = check
+        figures = {"time": self.time, **measured, **check.as_dict()}
+        self.gain_checks.append(figures)
+        problem = check.problem()
+        if not self.config.gain_check:
+            if problem is not None:
+                self.log(f"gain check (off): {problem}")
+            return figures
+        if problem is not None and not self._gains_fault:
+            self._gains_fault = True
+            self.log(f"hold: gains beyond the sampled loop's bounds: {problem}")
+        elif problem is None and self._gains_fault:
+            self._gains_fault = False
+            self.log(
+                f"resume: gains within the sampled loop's bounds at {1.0 / period:.4g} Hz, "
+                f"command {delay} period(s) late"
+            )
+        return figures
+
+    def stability_summary(self) -> dict:
+        """timing.json's ``stability``: the start check and the checks while running."""
+        unstable = [c for c in self.gain_checks if c["verdict"] != "stable"]
+        return {
+            "start": self.start_check.as_dict(),
+            "checks": len(self.gain_checks),
+            "unstable_checks": len(unstable),
+            "last": self.gain_checks[-1] if self.gain_checks else None,
+            "worst": max(
+                self.gain_checks, key=lambda c: c["damper_gain"] / c["damper_limit"], default=None
+            ),
+            "history": [{key: check[key] for key in HISTORY_KEYS} for check in self.gain_checks],
+        }
+
+    def _publish(self, utime: int, values: np.ndarray) -> None:
+        """The command: joint torques (torque mode) or joint positions (position mode)."""
         command = lcmt_panda_command()
         command.utime = int(utime)
-        command.num_joint_position = 0
-        command.joint_position = []
+        values = [float(x) for x in values]
+        positions, torques = ([], values) if not self.position_mode else (values, [])
+        command.num_joint_position = len(positions)
+        command.joint_position = positions
         command.num_joint_velocity = 0
         command.joint_velocity = []
-        command.num_joint_torque = NUM_JOINTS
-        command.joint_torque = [float(x) for x in torque]
-        command.control_mode_expected = 4  # PandaControlMode.kTorque
+        command.num_joint_torque = len(torques)
+        command.joint_torque = torques
+        # PandaControlMode.kPosition (1) or kTorque (4).
+        command.control_mode_expected = 1 if self.position_mode else 4
         self._lcm.Publish(CHANNELS.command, command.encode())
         self.last_command = command
 
-    def _hold_torque(self) -> np.ndarray:
+    def _hold(self) -> None:
+        """Publishes the last command's torques or positions again, with the last status's
+        utime (before any command: zero torque; in position mode nothing, the robot holds
+        the arm until its first command)."""
         if self.last_command is None:
-            return np.zeros(NUM_JOINTS)
-        return np.asarray(self.last_command.joint_torque)
+            if not self.position_mode:
+                self._publish(self._last_utime, np.zeros(NUM_JOINTS))
+            return
+        command = self.last_command
+        values = command.joint_position if self.position_mode else command.joint_torque
+        self._publish(self._last_utime, np.asarray(values))
 
     def safe_command(self, why: str) -> None:
-        """Publishes the hold command (the last torques, the last status's utime); logs why."""
-        self._publish(self._last_utime, self._hold_torque())
+        """Publishes the hold command (:meth:`_hold`); logs why."""
+        self._hold()
         self.log(f"hold command: {why}")
 
     # --- the loop ------------------------------------------------------------------------
@@ -274,7 +376,7 @@ class AdmittanceController:
             if not self._status_lost:
                 self._status_lost = True
                 self.log(f"hold: no status for {silent / self.period:.1f} periods")
-            self._publish(self._last_utime, self._hold_torque())
+            self._hold()
 
     def poll(self, timeout: float) -> None:
         """Handles the messages that arrive within `timeout` s, then the watchdogs."""

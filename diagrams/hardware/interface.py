@@ -21,7 +21,7 @@ from drake import lcmt_force_torque, lcmt_panda_command
 from pydrake.common.value import Value
 from pydrake.systems.framework import BasicVector, LeafSystem
 
-__all__ = ["CommandWatchdog", "WristWrenchSensor"]
+__all__ = ["CommandWatchdog", "WrenchMessage", "WristWrenchSensor", "joint_gains"]
 
 NUM_JOINTS = 7
 
@@ -206,3 +206,50 @@ class WristWrenchSensor(LeafSystem):
 
     def _calc_wrench(self, context, output: BasicVector) -> None:
         output.SetFromVector(self.wrench(context))
+
+
+class WrenchMessage(LeafSystem):
+    """A wrench [fx, fy, fz, tx, ty, tz] (in the sensor frame) as ``lcmt_force_torque``,
+    ``timestamp`` in microseconds of the station's time: what the force/torque sensor's
+    driver publishes (the scenario's wrist sensor, ``systems.wrench_sensor.WrenchSensor``,
+    with its bias, noise, low-pass and readout period).
+
+    .. pydrake_system::
+
+        name: WrenchMessage
+        input_ports:
+        - wrench
+        output_ports:
+        - lcmt_force_torque
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._wrench = self.DeclareVectorInputPort("wrench", 6)
+        self.DeclareAbstractOutputPort(
+            "lcmt_force_torque", lambda: Value(lcmt_force_torque()), self._calc_message
+        )
+
+    def _calc_message(self, context, output) -> None:
+        wrench = self._wrench.Eval(context)
+        message = lcmt_force_torque()
+        message.timestamp = int(round(context.get_time() * 1e6))
+        message.fx, message.fy, message.fz = (float(x) for x in wrench[:3])
+        message.tx, message.ty, message.tz = (float(x) for x in wrench[3:])
+        output.set_value(message)
+
+
+def joint_gains(arm, q, config, period: float) -> dict:
+    """The station's joint PD gains, per joint: ``joint_damping`` and ``joint_stiffness``
+    capped where the joint is light. The discrete plant applies the PD's torque explicitly
+    over each step, which is stable for d_i h / M_ii < 2 (M_ii the joint's inertia at the
+    start posture q, h the step); the cap keeps d_i <= 0.5 M_ii / h, and k_i <= d_i^2 / M_ii
+    (damping ratio 0.5 or more). The wrist's last joint (M_77 = 0.0067 kg m^2, the Panda
+    without its motors' reflected inertia, which the URDF does not give) gets d = 3.3 N m s/rad.
+    """
+    context = arm.CreateDefaultContext()
+    arm.SetPositions(context, q)
+    inertia = np.diag(arm.CalcMassMatrix(context))
+    damping = np.minimum(config.joint_damping, 0.5 * inertia / period)
+    stiffness = np.minimum(config.joint_stiffness, damping**2 / inertia)
+    return {"joint_stiffness": stiffness, "joint_damping": damping}

@@ -23,6 +23,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from drake import lcmt_force_torque, lcmt_panda_command, lcmt_panda_status
+from pydrake.common import RandomGenerator
+from pydrake.geometry import MeshcatVisualizer
 from pydrake.manipulation import PandaCommandReceiver, PandaControlMode, PandaStatusSender
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
@@ -33,14 +35,21 @@ from pydrake.systems.primitives import Demultiplexer, LogVectorOutput
 
 from admittance.diagrams.hardware.config import HardwareConfig, spatial_scenario
 from admittance.diagrams.hardware.control_law import start_positions
-from admittance.diagrams.hardware.interface import CommandWatchdog, WristWrenchSensor
+from admittance.diagrams.hardware.interface import (
+    CommandWatchdog,
+    WrenchMessage,
+    WristWrenchSensor,
+    joint_gains,
+)
 from admittance.diagrams.hardware.messages import CHANNELS
+from admittance.diagrams.loop.point import AddSensorChain
 from admittance.diagrams.robots.spatial_arm import (
     CONTROL_FRAME,
     NORMAL_AXIS,
     TOOL_BODY,
     TOOL_TIP_FRAME,
     AddSpatialArm,
+    spatial_point,
 )
 from admittance.diagrams.run.metrics import (
     final_window,
@@ -49,8 +58,20 @@ from admittance.diagrams.run.metrics import (
     settled_from,
     time_mean,
 )
+from admittance.systems.wrench_sensor import WrenchSensor
 
-__all__ = ["joint_gains", "Station", "BuildStation", "StationRun", "run_station", "station_metrics"]
+__all__ = [
+    "InitializeStation",
+    "Station",
+    "BuildStation",
+    "StationRun",
+    "run_station",
+    "station_metrics",
+]
+
+
+# The station reads its Meshcat sliders once per this many periods.
+SLIDER_POLL_STEPS = 10
 
 
 @dataclass
@@ -63,14 +84,21 @@ class Station:
     loggers: dict
     # The arm's joints at t = 0, rad.
     initial_positions: np.ndarray
+    # The scenario's wrist sensor (sensor.kind wrench), None for the ideal one.
+    wrist_sensor: WrenchSensor | None = None
+    # The scenario's seed, for the sensor's noise.
+    seed: int = 0
 
 
-def BuildStation(config: HardwareConfig, lcm) -> Station:
-    """The station of `config` on the LCM instance `lcm` (a DrakeLcm)."""
+def BuildStation(config: HardwareConfig, lcm, meshcat=None) -> Station:
+    """The station of `config` on the LCM instance `lcm` (a DrakeLcm); with `meshcat`, the
+    arm drawn there."""
     period = 1.0 / config.rate
     scenario = spatial_scenario(config)
     builder = DiagramBuilder()
-    plant, _, _ = AddSpatialArm(builder, scenario)
+    plant, scene_graph, _ = AddSpatialArm(builder, scenario)
+    if meshcat is not None:
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
     plant.set_name("panda_plant")
     initial = start_positions(scenario)
     plant.SetDefaultPositions(initial)
@@ -144,7 +172,16 @@ def BuildStation(config: HardwareConfig, lcm) -> Station:
         "wrench_publisher",
         LcmPublisherSystem.Make(CHANNELS.wrench, lcmt_force_torque, lcm, period),
     )
-    builder.Connect(sensor.GetOutputPort("lcmt_force_torque"), wrench_publisher.get_input_port())
+    wrist = None
+    if scenario.sensor.kind == "wrench":  # the scenario's sensor: bias, noise, low-pass
+        wrist = _AddWristSensor(builder, scenario, plant, initial)
+        message = builder.AddNamedSystem("wrench_message", WrenchMessage())
+        builder.Connect(wrist.compensated_wrench_output, message.get_input_port())
+        builder.Connect(message.get_output_port(), wrench_publisher.get_input_port())
+    else:  # the ideal sensor: the tool's contact wrench
+        builder.Connect(
+            sensor.GetOutputPort("lcmt_force_torque"), wrench_publisher.get_input_port()
+        )
 
     loggers = {
         "state": LogVectorOutput(plant.get_state_output_port(), builder, period),
@@ -159,23 +196,28 @@ def BuildStation(config: HardwareConfig, lcm) -> Station:
         watchdog=watchdog,
         loggers=loggers,
         initial_positions=initial,
+        wrist_sensor=wrist,
+        seed=int(scenario.seed),
     )
 
 
-def joint_gains(arm: MultibodyPlant, q, config: HardwareConfig, period: float) -> dict:
-    """The station's joint PD gains, per joint: ``joint_damping`` and ``joint_stiffness``
-    capped where the joint is light. The discrete plant applies the PD's torque explicitly
-    over each step, which is stable for d_i h / M_ii < 2 (M_ii the joint's inertia at the
-    start posture q, h the step); the cap keeps d_i <= 0.5 M_ii / h, and k_i <= d_i^2 / M_ii
-    (damping ratio 0.5 or more). The wrist's last joint (M_77 = 0.0067 kg m^2, the Panda
-    without its motors' reflected inertia, which the URDF does not give) gets d = 3.3 N m s/rad.
-    """
-    context = arm.CreateDefaultContext()
-    arm.SetPositions(context, q)
-    inertia = np.diag(arm.CalcMassMatrix(context))
-    damping = np.minimum(config.joint_damping, 0.5 * inertia / period)
-    stiffness = np.minimum(config.joint_stiffness, damping**2 / inertia)
-    return {"joint_stiffness": stiffness, "joint_damping": damping}
+def _AddWristSensor(builder, scenario, plant, initial) -> WrenchSensor:
+    """The scenario's wrist force/torque sensor at ``tool_weld`` (``sensor.kind: wrench``),
+    built by the simulated loop's own step (``loop.point.AddSensorChain`` on
+    ``spatial_point``), its noise from a RandomSource at its readout period."""
+    point = spatial_point(scenario, plant, initial)
+    return AddSensorChain(builder, point, None, plant=plant).sensor
+
+
+def InitializeStation(station: Station, context) -> None:
+    """The noise seeded from the scenario's seed, and a wrist sensor's held or filtered
+    reading at what it reads at rest in the air, the tool's weight (as the simulated loop
+    starts it), which its compensation removes."""
+    station.diagram.SetRandomContext(context, RandomGenerator(station.seed))
+    sensor = station.wrist_sensor
+    if sensor is not None:  # read at the step at least (spatial_point): a held reading
+        sensor_context = sensor.GetMyMutableContextFromRoot(context)
+        sensor_context.SetDiscreteState(sensor.weight_wrench(sensor_context))
 
 
 @dataclass
@@ -224,7 +266,9 @@ class _CommandClock:
             lcm.HandleSubscriptions(max(1, int(remaining * 1e3)))
 
 
-def run_station(config: HardwareConfig, lcm, *, progress=None, stop=None) -> StationRun:
+def run_station(
+    config: HardwareConfig, lcm, *, progress=None, stop=None, sliders=None
+) -> StationRun:
     """Runs the station for ``config.duration`` of simulated time, paced to
     ``config.realtime_rate`` where the machine can; `stop()` returning True ends it early.
 
@@ -236,10 +280,14 @@ def run_station(config: HardwareConfig, lcm, *, progress=None, stop=None) -> Sta
     goes on with the newest command it has; once the commands are older than the
     watchdog's timeout it stops waiting. The controller's own timing (timing.json) says
     whether it meets the deadline.
+
+    `sliders` (``sliders.ParameterSliders``): polled every SLIDER_POLL_STEPS periods, the
+    arm drawn on their Meshcat.
     """
-    station = BuildStation(config, lcm)
+    station = BuildStation(config, lcm, None if sliders is None else sliders.meshcat)
     simulator = Simulator(station.diagram)
     simulator.set_target_realtime_rate(config.realtime_rate)
+    InitializeStation(station, simulator.get_mutable_context())
     clock = _CommandClock(lcm)
     simulator.Initialize()
     start = time.monotonic()
@@ -252,6 +300,8 @@ def run_station(config: HardwareConfig, lcm, *, progress=None, stop=None) -> Sta
             break
         # The status of the previous step's end (utime (step - 1) period) is out.
         status_utime = int(round((step - 1) * period * 1e6))
+        if sliders is not None and (step - 1) % SLIDER_POLL_STEPS == 0:
+            sliders.poll()
         clock.wait_for_answer(lcm, status_utime, config.command_wait, config.command_timeout)
         simulator.AdvanceTo(step * period)
         if progress is not None and step % 100 == 0:

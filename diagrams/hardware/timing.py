@@ -11,6 +11,7 @@ a status that a newer one replaced before its cycle ran is skipped (``skipped_st
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -36,16 +37,49 @@ class CycleTiming:
         self._arrivals: list[float] = []
         self._published: list[float] = []
         self._cpu: list[float] = []
+        self._status_times: list[float] = []
         # Statuses received but not answered: a newer one came before the cycle ran.
         self.skipped = 0
         # Statuses between two answered ones that were not answered (skipped or never
         # received), counted from the gaps in utime.
         self.gaps = 0
 
-    def record(self, arrival: float, published: float, cpu: float) -> None:
+    def record(self, arrival: float, published: float, cpu: float, status_time=math.nan) -> None:
         self._arrivals.append(arrival)
         self._published.append(published)
         self._cpu.append(cpu)
+        self._status_times.append(status_time)
+
+    def measured(self, since: int = 0) -> dict | None:
+        """What the cycles from index `since` on measured, for the sampled-loop check
+        (None with fewer than 10):
+
+        * ``period``: the p99 of the status-clock interval between two answered statuses
+          (the time a command is held), s;
+        * ``latency``: the p99 of status arrival to command publication (wall), s;
+        * ``status_interval``: the median wall time per period of the status clock, s;
+        * ``delay_periods``: N, the periods from a status to its command acting, the p99
+          over the cycles of 1 + the statuses that came while it computed (its latency
+          over the wall time until the next status arrived, per period of the status
+          clock): a robot's statuses keep coming at its rate, while a simulated station
+          that waits for each answer sends the next only after it (N = 1).
+        """
+        times = np.asarray(self._status_times[since:])
+        arrivals = np.asarray(self._arrivals[since:])
+        if times.size < 10 or not np.all(np.isfinite(times)):
+            return None
+        latency = np.asarray(self._published[since:]) - arrivals
+        intervals = np.diff(times)
+        periods = np.maximum(np.round(intervals / self.period), 1.0)
+        per_period = np.diff(arrivals) / periods
+        waited = np.floor(latency[:-1] / np.maximum(per_period, 1e-9) + 1e-9)
+        return {
+            "cycles": int(times.size),
+            "period": float(np.percentile(intervals, 99)),
+            "latency": float(np.percentile(latency, 99)),
+            "status_interval": float(np.median(per_period)),
+            "delay_periods": int(1 + np.percentile(waited, 99, method="higher")),
+        }
 
     @property
     def cycles(self) -> int:
