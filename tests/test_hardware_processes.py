@@ -37,21 +37,28 @@ def _namespaces_allowed() -> str | None:
     return None
 
 
-_REASON = _namespaces_allowed()
-needs_namespace = pytest.mark.skipif(_REASON is not None, reason=_REASON or "")
+NAMESPACE_REFUSAL = _namespaces_allowed()
+needs_namespace = pytest.mark.skipif(NAMESPACE_REFUSAL is not None, reason=NAMESPACE_REFUSAL or "")
 
 
-def _pair(tmp_path: Path, control: list[str], station: list[str], after: str = "") -> dict:
+def run_pair(
+    tmp_path: Path,
+    control: list[str],
+    station: list[str],
+    after: str = "",
+    admittance: str = ADMITTANCE,
+) -> dict:
     """Runs `admittance control` then, once it waits for status, `admittance station`, both
     in one fresh network namespace; `after` is shell run while the station runs (CONTROL
-    is the controller's pid). Returns the exit statuses and the stderr texts."""
+    is the controller's pid); `admittance` is the console script to run. Returns the exit
+    statuses and the stderr texts."""
     control_cmd = " ".join(
-        shlex.quote(a)
-        for a in [ADMITTANCE, "control", "--lcm", URL, "--out", str(tmp_path / "control"), *control]
+        shlex.quote(str(a))
+        for a in [admittance, "control", "--lcm", URL, "--out", tmp_path / "control", *control]
     )
     station_cmd = " ".join(
-        shlex.quote(a)
-        for a in [ADMITTANCE, "station", "--lcm", URL, "--out", str(tmp_path / "station"), *station]
+        shlex.quote(str(a))
+        for a in [admittance, "station", "--lcm", URL, "--out", tmp_path / "station", *station]
     )
     script = f"""
 ip link set lo up && ip route add 224.0.0.0/4 dev lo || exit 97
@@ -146,7 +153,7 @@ def test_a_status_and_its_command_cross_between_two_processes_in_the_namespace()
 def test_two_processes_talk_and_the_controller_exits_when_the_station_is_gone(tmp_path):
     """A short station (0.3 s): every status is answered in time (no command loss at the
     station); then the station stops and the controller exits with one line, status 1."""
-    result = _pair(
+    result = run_pair(
         tmp_path,
         ["--set", "duration=10", "--set", "station_timeout=0.5"],
         ["--set", "duration=0.3"],
@@ -166,7 +173,7 @@ def test_two_processes_talk_and_the_controller_exits_when_the_station_is_gone(tm
 @needs_namespace
 @pytest.mark.slow
 def test_two_processes_press_the_table_within_5_percent_of_fr(tmp_path):
-    result = _pair(tmp_path, ["--set", "duration=4"], ["--set", "duration=4"])
+    result = run_pair(tmp_path, ["--set", "duration=4"], ["--set", "duration=4"])
     assert result["station"] == 0 and result["control"] == 0, result
     metrics = _metrics(tmp_path)
     assert metrics["command_loss_time"] is None
@@ -180,7 +187,7 @@ def test_the_controller_killed_mid_press_leaves_the_arm_held_under_2_fr(tmp_path
     """SIGKILL once the controller's clock reaches 2 s (in contact since 0.92 s, the force
     near 9.6 N at the end of its ramp): the station holds the arm from its watchdog's
     timeout on, and the force after the loss stays under 2 Fr."""
-    result = _pair(
+    result = run_pair(
         tmp_path,
         ["--set", "duration=6"],
         ["--set", "duration=6", "-q"],

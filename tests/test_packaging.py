@@ -16,6 +16,7 @@ import venv
 from pathlib import Path
 
 import pytest
+from test_hardware_processes import needs_namespace, run_pair
 
 from admittance.diagrams.robots.spatial_arm import example_robot_data_packages
 
@@ -151,3 +152,24 @@ def test_wheel_presses_the_panda_and_analyses_its_whole_loop(wheel_env, tmp_path
     assert analysed.returncode == 0, analysed.stderr
     whole = json.loads((report / "report.json").read_text())["whole_loop"]
     assert whole["stable"] and whole["lyapunov"]["positive_definite"]
+
+
+@pytest.mark.skipif(
+    example_robot_data_packages() is None, reason="needs the robots extra (example-robot-data)"
+)
+@needs_namespace
+@pytest.mark.slow
+def test_wheel_runs_the_station_and_the_controller_as_two_processes(wheel_env, tmp_path):
+    """`admittance station` and `admittance control` from the wheel, in a network namespace
+    of their own: the press settles to Fr (10.000 N over the last second, measured; 5 %
+    band) with no command lost, and both exit 0."""
+    result = run_pair(
+        tmp_path,
+        ["--set", "duration=4"],
+        ["--set", "duration=4"],
+        admittance=str(wheel_env / "admittance"),
+    )
+    assert result["station"] == 0 and result["control"] == 0, result
+    metrics = json.loads((tmp_path / "station" / "metrics.json").read_text())
+    assert metrics["command_loss_time"] is None
+    assert abs(metrics["steady_state_force"] - 10.0) < 0.5
