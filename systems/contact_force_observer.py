@@ -107,6 +107,7 @@ def ContactForceObserver_(T):
             coordinates=PLANAR_COORDINATES,
             expressed_in: str = "world",
             coriolis: bool = True,
+            period: float = 0.0,
             converter=None,
         ) -> None:
             """
@@ -120,10 +121,15 @@ def ContactForceObserver_(T):
                 expressed_in: the frame X is measured and expressed in.
                 coriolis: integrate C(q, v)^T v (False: the observer without it, for the
                     comparison of docs/safety.md).
+                period: 0 integrates p_I continuously; > 0 steps it by Euler once per
+                    period, s (a sampled loop's tick: K_o period must stay below 2).
             """
             LeafSystem_[T].__init__(self, converter=converter)
             if not (math.isfinite(gain) and gain > 0):
                 raise ValueError(f"gain must be > 0 1/s, got {gain}")
+            if not (math.isfinite(period) and 0 <= period and gain * period < 2):
+                raise ValueError(f"period must be >= 0 s with gain x period < 2, got {period}")
+            self._period = float(period)
             self._plant = plant
             self._frame_name = frame_name
             self._gain = float(gain)
@@ -139,18 +145,26 @@ def ContactForceObserver_(T):
             self.actuation_input = self.DeclareVectorInputPort(
                 "actuation", plant.num_actuated_dofs()
             )
-            self.DeclareContinuousState(nv)
+            if self._period > 0:
+                self.DeclareDiscreteState(nv)
+                self.DeclarePeriodicDiscreteUpdateEvent(
+                    period_sec=self._period, offset_sec=0.0, update=self._DiscreteUpdate
+                )
+                integral_ticket = self.xd_ticket()
+            else:
+                self.DeclareContinuousState(nv)
+                integral_ticket = self.xc_ticket()
             self.contact_force_output = self.DeclareVectorOutputPort(
                 "contact_force",
                 1,
                 self._CalcContactForce,
-                prerequisites_of_calc={self.xc_ticket(), self.estimated_state_input.ticket()},
+                prerequisites_of_calc={integral_ticket, self.estimated_state_input.ticket()},
             )
             self.external_torque_output = self.DeclareVectorOutputPort(
                 "external_torque",
                 nv,
                 lambda context, output: output.SetFromVector(self._residual(context)),
-                prerequisites_of_calc={self.xc_ticket(), self.estimated_state_input.ticket()},
+                prerequisites_of_calc={integral_ticket, self.estimated_state_input.ticket()},
             )
 
         def _construct_copy(self, other, converter=None) -> None:
@@ -161,6 +175,7 @@ def ContactForceObserver_(T):
                 gain=other._gain,
                 normal_axis=other._normal_axis,
                 coriolis=other._coriolis,
+                period=other._period,
                 converter=converter,
                 **other._task,
             )
@@ -176,24 +191,40 @@ def ContactForceObserver_(T):
             mass_matrix = self._plant.CalcMassMatrix(self._kinematics.context)
             return mass_matrix @ state[self._num_positions :]
 
+        def _integral(self, context):
+            """p_I, the observer's state (continuous, or discrete with a period)."""
+            if self._period > 0:
+                return context.get_discrete_state_vector().CopyToVector()
+            return context.get_continuous_state_vector().CopyToVector()
+
         def _residual(self, context):
             """r = K_o (M v - p_I) at the context's state and input."""
             momentum = self._momentum(context)
-            return self._gain * (momentum - context.get_continuous_state_vector().CopyToVector())
+            return self._gain * (momentum - self._integral(context))
 
         def set_external_torque(self, context, external_torque) -> None:
             """Sets p_I so that r equals `external_torque` at the context's state (warm start)."""
-            momentum = self._momentum(context)
-            context.SetContinuousState(momentum - np.asarray(external_torque) / self._gain)
+            integral = self._momentum(context) - np.asarray(external_torque) / self._gain
+            if self._period > 0:
+                context.SetDiscreteState(integral)
+            else:
+                context.SetContinuousState(integral)
 
-        def DoCalcTimeDerivatives(self, context, derivatives) -> None:
+        def _rate(self, context):
+            """dp_I/dt = tau + tau_g + C(q, v)^T v + r at the context's state and input."""
             residual = self._residual(context)
             torque = self._actuation_matrix @ self.actuation_input.Eval(context)
             plant_context = self._kinematics.context
             rate = torque + self._plant.CalcGravityGeneralizedForces(plant_context) + residual
             if self._coriolis:
                 rate = rate + velocity_product(self._plant, plant_context, self._shifted_context)
-            derivatives.get_mutable_vector().SetFromVector(rate)
+            return rate
+
+        def DoCalcTimeDerivatives(self, context, derivatives) -> None:
+            derivatives.get_mutable_vector().SetFromVector(self._rate(context))
+
+        def _DiscreteUpdate(self, context, discrete_state) -> None:
+            discrete_state.set_value(self._integral(context) + self._period * self._rate(context))
 
         def _CalcContactForce(self, context, output) -> None:
             residual = self._residual(context)  # sets the kinematics to the context's state

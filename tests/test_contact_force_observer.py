@@ -244,3 +244,31 @@ def test_on_the_panda_the_observer_reads_the_force_along_the_control_frame_z():
         f"without it reads {spurious:+.3g} N along z"
     )
     assert abs(spurious) < 2.3
+
+
+def test_the_sampled_observer_steps_r_toward_the_external_torque_by_euler(arm_plant):
+    """With a period h the observer steps p_I by Euler once per tick. On the arm at rest
+    (p = M v = 0) under constant torques tau, the torque that holds it still is
+    tau_ext = -(tau + tau_g), and by hand r[k+1] = r[k] + K_o h (tau_ext - r[k]), so from
+    r[0] = 0: r[n] = tau_ext (1 - (1 - K_o h)^n). Measured to rounding (1e-15 N m); 1e-12."""
+    plant = arm_plant
+    h, gain = 1e-3, 100.0
+    q = SolvePlanarInverseKinematics(plant, "fingertip", POSE, [-0.45, 1.66, 0.36])
+    state = np.concatenate([q, np.zeros(3)])
+    torque = np.array([0.4, -0.2, 0.05])
+    observer = ContactForceObserver(plant, gain=gain, period=h)
+    context = observer.CreateDefaultContext()
+    observer.estimated_state_input.FixValue(context, state)
+    observer.actuation_input.FixValue(context, torque)
+    plant_context = plant.CreateDefaultContext()
+    plant.SetPositionsAndVelocities(plant_context, state)
+    holding = -(torque + plant.CalcGravityGeneralizedForces(plant_context))
+    simulator = Simulator(observer, context)
+    for n in (1, 10, 100):
+        # Ticks at 0, h, ..., (n - 1) h have run once the clock passes (n - 1) h.
+        simulator.AdvanceTo((n - 0.5) * h)
+        expected = holding * (1.0 - (1.0 - gain * h) ** n)
+        residual = observer.external_torque_output.Eval(context)
+        assert np.allclose(residual, expected, rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="period"):
+        ContactForceObserver(plant, gain=gain, period=0.03)  # K_o h = 3 > 2: unstable

@@ -63,6 +63,7 @@ class LayerNumbers:
     law: dict
     frozen: bool = False  # an analysis diagram: the detector passes the reading on
     frozen_estimate: float | None = None  # an analysis diagram: the estimate, N/m
+    observer_period: float = 0.0  # 0: the observer integrates continuously; > 0: its tick, s
 
 
 def law_arguments(admittance, safety, *, kp: float, kd: float, **robot) -> dict:
@@ -103,7 +104,9 @@ def AddLayerSystems(
         Xr are the caller's to wire.
     """
     reference, noise, contact = numbers.force_reference, numbers.noise, numbers.contact_force
-    observer = builder.AddSystem(ContactForceObserver(plant, gain=OBSERVER_GAIN, **tip))
+    observer = builder.AddSystem(
+        ContactForceObserver(plant, gain=OBSERVER_GAIN, period=numbers.observer_period, **tip)
+    )
     observer.set_name(name("contact_force_observer"))
     estimator = builder.AddSystem(
         StiffnessEstimator(

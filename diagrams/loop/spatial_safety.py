@@ -156,6 +156,8 @@ def AddSpatialForceLoop(
         reading_period=point.sensor.period or scenario.time_step,
         saturation_force=NO_SATURATION,
         max_stiffness=safety.max_stiffness,
+        # The observer steps with the plant: the loop is sampled at time_step.
+        observer_period=scenario.time_step,
         law=law_arguments(
             admittance,
             safety,
