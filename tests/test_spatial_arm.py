@@ -208,6 +208,20 @@ def test_short_follow_holds_the_force_path_and_orientation():
     assert np.max(result.plan[:, 0]) == pytest.approx(0.02)
 
 
+def _ur5_press(urdf: str) -> str:
+    """A press scenario on a UR5 description at `urdf` (a path next to the scenario)."""
+    return (
+        "kind: spatial\n"
+        "duration: 3.5\n"
+        "trajectory: {press_time: 1.0}\n"
+        "arm:\n"
+        f"  urdf: {urdf}\n"
+        "  base_frame: base_link\n"
+        "  flange_frame: tool0\n"
+        "  joint_guess: [0.0, -1.57, 1.57, -1.57, -1.57, 0.0]\n"
+    )
+
+
 @needs_robots
 def test_simulate_a_urdf_outside_the_repository(tmp_path, capsys):
     """`admittance simulate` on a user's URDF by path, changing only the arm's keys."""
@@ -218,16 +232,7 @@ def test_simulate_a_urdf_outside_the_repository(tmp_path, capsys):
 
     source = example_robot_data_packages()["ur_description"] / "urdf" / "ur5_robot.urdf"
     shutil.copy(source, tmp_path / "my_arm.urdf")
-    (tmp_path / "my_press.yaml").write_text(
-        "kind: spatial\n"
-        "duration: 3.5\n"
-        "trajectory: {press_time: 1.0}\n"
-        "arm:\n"
-        "  urdf: my_arm.urdf\n"
-        "  base_frame: base_link\n"
-        "  flange_frame: tool0\n"
-        "  joint_guess: [0.0, -1.57, 1.57, -1.57, -1.57, 0.0]\n"
-    )
+    (tmp_path / "my_press.yaml").write_text(_ur5_press("my_arm.urdf"))
     out = tmp_path / "result"
     assert main(["simulate", str(tmp_path / "my_press.yaml"), "--out", str(out)]) == 0
     metrics = json.loads((out / "metrics.json").read_text())
@@ -276,3 +281,53 @@ def test_arm_only_commands_refuse_a_spatial_scenario_in_one_line(command, capsys
     error = capsys.readouterr().err.strip()
     assert "is a spatial-arm scenario (kind: spatial)" in error and "\n" not in error
     assert "simulate, bench, stability" in error
+
+
+@needs_robots
+def test_a_plan_the_arm_cannot_follow_is_refused_before_the_run(tmp_path, capsys):
+    """A slide 35 cm out (duration 40 s) reaches the Panda's stretched pose at 34 cm, where
+    the 2 cm/s slide needs joint 4 faster than its 2.175 rad/s limit (the Jacobian's
+    least-norm speeds: 2.38 rad/s, measured): refused in one line naming the slide's keys,
+    and no folder is written; the built-in follow (2 cm/s over 10 cm) passes the check."""
+    from admittance.diagrams.app.cli import main
+    from admittance.diagrams.loop.spatial_arm import BuildSpatialLoop, CheckSpatialPlan
+
+    out = tmp_path / "far"
+    argv = ["simulate", "panda_surface_follow", "--out", str(out)]
+    over = ["--set", "trajectory.slide_distance=0.35", "--set", "duration=40"]
+    assert main([*argv, *over]) == 2
+    error = capsys.readouterr().err.strip().splitlines()
+    assert len(error) == 1 and "trajectory.slide_speed" in error[0]
+    assert "velocity limits" in error[0] and not out.exists()
+    CheckSpatialPlan(BuildSpatialLoop(load_scenario("panda_surface_follow")))
+
+
+@needs_robots
+def test_a_press_beyond_the_arms_effort_limits_is_refused(tmp_path, capsys):
+    """Before any run, in one line naming the keys and the effort limits: a UR5 whose
+    description allows 1 N m per joint cannot hold its own arm (its shoulder carries 17 N m
+    at the press, by the plant's gravity); one whose wrist joints allow 0.5 N m holds it
+    (0.36 N m on wrist 1) but not the press, which turns wrist 1 by J^T F to 0.59 N m.
+    The published limits (150 and 28 N m) pass (test_simulate_a_urdf_outside_the_
+    repository)."""
+    import re
+
+    from admittance.diagrams.app.cli import main
+
+    source = example_robot_data_packages()["ur_description"] / "urdf" / "ur5_robot.urdf"
+    weak = re.sub(r'effort="[0-9.]+"', 'effort="1.0"', source.read_text())
+    (tmp_path / "weak.urdf").write_text(weak)
+    (tmp_path / "wrist.urdf").write_text(
+        source.read_text().replace('effort="28.0"', 'effort="0.5"')
+    )
+    (tmp_path / "weak.yaml").write_text(_ur5_press("weak.urdf"))
+    out = tmp_path / "result"
+    assert main(["simulate", str(tmp_path / "weak.yaml"), "--out", str(out)]) == 2
+    error = capsys.readouterr().err.strip().splitlines()
+    assert len(error) == 1 and error[0].startswith("admittance: error: arm.urdf, tool.mass:")
+    assert "effort limits (1, 1, 1, 1, 1, 1)" in error[0] and not out.exists()
+    (tmp_path / "wrist.yaml").write_text(_ur5_press("wrist.urdf"))
+    assert main(["simulate", str(tmp_path / "wrist.yaml"), "--out", str(out)]) == 2
+    error = capsys.readouterr().err.strip().splitlines()
+    assert len(error) == 1 and "force_reference: pressing 10 N" in error[0]
+    assert "0.586" in error[0] and not out.exists()

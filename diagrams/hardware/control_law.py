@@ -49,6 +49,7 @@ from admittance.diagrams.loop.point import (
 )
 from admittance.diagrams.loop.spatial_arm import (
     BuildSpatialLoop,
+    CheckSpatialPlan,
     spatial_force_reference,
     spatial_plan,
 )
@@ -74,9 +75,12 @@ def start_positions(scenario: SpatialScenario) -> np.ndarray:
     loop that ``simulate`` builds, so both start from the same posture.
 
     Raises:
-        ScenarioError: the start is out of reach (one line).
+        ScenarioError: the start is out of reach, or the plan cannot be reached, followed
+            or pressed with (one line; loop.spatial_arm.CheckSpatialPlan, as simulate checks).
     """
-    return BuildSpatialLoop(scenario).initial_positions
+    loop = BuildSpatialLoop(scenario)
+    CheckSpatialPlan(loop)
+    return loop.initial_positions
 
 
 class SpatialControlLaw:

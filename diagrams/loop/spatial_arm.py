@@ -38,6 +38,7 @@ from admittance.diagrams.loop.point import (
 )
 from admittance.diagrams.loop.spatial_safety import AddSpatialForceLoop, SpatialSafetyLayer
 from admittance.diagrams.robots.spatial_arm import (
+    CONTROL_FRAME,
     NORMAL_AXIS,
     TABLE_BODY,
     TOOL_BODY,
@@ -50,9 +51,11 @@ from admittance.diagrams.robots.spatial_arm import (
 from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.diagrams.scenario.spatial_arm import SPATIAL_COORDINATES, SpatialScenario
 from admittance.systems.directional_contact_force import DirectionalContactForce
+from admittance.systems.spatial_kinematics import SpatialFrameKinematics
 
 __all__ = [
     "BuildSpatialLoop",
+    "CheckSpatialPlan",
     "SetSpatialInitialConditions",
     "SpatialLoop",
     "spatial_force_reference",
@@ -268,6 +271,88 @@ def _initial_positions(
             f"arm.joint_guess, surface.position, surface.height: the tool cannot reach the "
             f"plan's start from this guess ({error})"
         ) from None
+
+
+def _joint_speeds(kinematics: SpatialFrameKinematics, q, task_velocity) -> np.ndarray:
+    """The joint speeds that move the tool tip at `task_velocity` (x, y, z, rx, ry, rz in E)
+    from q (least squares: a redundant arm's least-norm speeds)."""
+    kinematics.set_state(np.concatenate([q, np.zeros(q.size)]))
+    jacobian = np.asarray(kinematics.jacobian(), dtype=float)
+    return np.linalg.lstsq(jacobian, np.asarray(task_velocity), rcond=None)[0]
+
+
+def CheckSpatialPlan(loop: SpatialLoop, step: float = 0.05) -> None:
+    """Rejects a plan the arm cannot reach, follow or press with, naming the keys, as the
+    planar arm's CheckTrajectoryReachable does.
+
+    Samples Xd(t) every `step` s (and at the plan's breaks) and solves the inverse
+    kinematics of each point from the previous one: each must lie within the joint limits,
+    the joint speeds that follow dXd/dt within the model's velocity limits, and at the
+    press the torques that hold Fr along E's z against gravity, J^T F - tau_g, within its
+    effort limits.
+
+    Raises:
+        ScenarioError: one line naming the keys and the first point that fails.
+    """
+    scenario, plant, geometry = loop.scenario, loop.plant, loop.geometry
+    plan = spatial_plan(scenario)
+    kinematics = SpatialFrameKinematics(
+        plant, TOOL_TIP_FRAME, coordinates=SPATIAL_COORDINATES, expressed_in=CONTROL_FRAME
+    )
+    speed_limits = plant.GetVelocityUpperLimits()
+    times = sorted({*np.arange(0.0, scenario.duration, step), *plan.get_segment_times()})
+    q = np.asarray(loop.initial_positions, dtype=float)
+    for time in (t for t in times if t <= scenario.duration):
+        point = plan.value(time)[:, 0]
+        where = f"({', '.join(f'{1e3 * v:.1f}' for v in point[:3])}) mm in the control frame"
+        pose = geometry.X_WE @ RigidTransform(point[:3])
+        try:
+            q = SolveSpatialInverseKinematics(plant, TOOL_TIP_FRAME, pose, q)
+        except ValueError:
+            raise ScenarioError(
+                f"surface.position, trajectory.slide_distance, trajectory.slide_direction: the "
+                f"plan's point at t = {time:.2f} s, {where}, is out of the arm's reach or beyond "
+                "its joint limits"
+            ) from None
+        speeds = _joint_speeds(kinematics, q, plan.EvalDerivative(time, 1)[:, 0])
+        if np.any(np.abs(speeds) > speed_limits):
+            needed = ", ".join(f"{abs(v):.3g}" for v in speeds)
+            allowed = ", ".join(f"{v:.3g}" for v in speed_limits)
+            keys = (
+                "trajectory.approach_time, trajectory.approach_height"
+                if time < scenario.press_start
+                else "trajectory.slide_speed, trajectory.slide_distance, trajectory.blend_time"
+            )
+            raise ScenarioError(
+                f"{keys}: following the plan at t = {time:.2f} s, {where}, needs joint speeds "
+                f"({needed}) rad/s, beyond the model's velocity limits ({allowed}) rad/s"
+            )
+        _check_within_effort_limits(loop, kinematics, q, where, time >= scenario.press_start)
+
+
+def _check_within_effort_limits(loop: SpatialLoop, kinematics, q, where: str, pressing) -> None:
+    """At rest, holding the arm against gravity and, `pressing`, Fr along E's z:
+    tau = J^T F - tau_g within the PID's effort limits."""
+    scenario, plant = loop.scenario, loop.plant
+    plant_context = plant.CreateDefaultContext()
+    plant.SetPositions(plant_context, q)
+    torque = -plant.CalcGravityGeneralizedForces(plant_context)
+    limits = loop.pid.effort_limits
+    what = "the arm's own weight"
+    if pressing and np.all(np.abs(torque) <= limits):
+        kinematics.set_state(np.concatenate([q, np.zeros(q.size)]))
+        force = np.zeros(SIZE)
+        force[NORMAL_AXIS] = scenario.force_reference
+        torque = torque + np.asarray(kinematics.jacobian(), dtype=float).T @ force
+        what = f"pressing {scenario.force_reference:g} N"
+    if np.any(np.abs(torque) > limits):
+        needed = ", ".join(f"{abs(t):.3g}" for t in torque)
+        allowed = ", ".join(f"{limit:.3g}" for limit in limits)
+        keys = "force_reference" if what.startswith("pressing") else "arm.urdf, tool.mass"
+        raise ScenarioError(
+            f"{keys}: {what} at {where} needs joint torques ({needed}) N m, beyond the "
+            f"model's effort limits ({allowed}) N m"
+        )
 
 
 def SetSpatialInitialConditions(loop: SpatialLoop, context: Context) -> None:

@@ -40,6 +40,7 @@ from pydrake.systems.analysis import SimulatorConfig
 
 from admittance.diagrams.loop.spatial_arm import (
     BuildSpatialLoop,
+    CheckSpatialPlan,
     SetSpatialInitialConditions,
     SpatialLoop,
 )
@@ -213,10 +214,12 @@ def run_spatial(
     """Builds (unless given), initializes and simulates a spatial-arm scenario.
 
     Raises:
-        ScenarioError: the model cannot be loaded, or the arm cannot reach the plan's start.
+        ScenarioError: the model cannot be loaded, or the arm cannot reach, follow or press
+            with the plan (loop.spatial_arm.CheckSpatialPlan).
         SimulationDivergedError: the run blew up (the exception carries the partial result).
     """
     loop = loop or BuildSpatialLoop(scenario)
+    CheckSpatialPlan(loop)
     numbers = {}
 
     def initialize(context) -> None:
