@@ -243,6 +243,16 @@ def BuildSpatialLoop(scenario: SpatialScenario, *, analysis: bool = False) -> Sp
     )
 
 
+def _joint_guess(
+    scenario: SpatialScenario, plant: MultibodyPlant, geometry: SpatialGeometry
+) -> np.ndarray:
+    """arm.joint_guess on the actuated joints, as the plant's positions (0 elsewhere)."""
+    guess = np.zeros(plant.num_positions())
+    for name, angle in zip(geometry.actuated_joints, scenario.arm.joint_guess, strict=False):
+        guess[plant.GetJointByName(name).position_start()] = angle
+    return guess
+
+
 def _initial_positions(
     scenario: SpatialScenario, plant: MultibodyPlant, geometry: SpatialGeometry
 ) -> np.ndarray:
@@ -260,9 +270,7 @@ def _initial_positions(
         for joint, angle in zip(actuated, arm.initial_joints, strict=True):
             q[joint.position_start()] = angle
         return q
-    guess = np.zeros(plant.num_positions())
-    for joint, angle in zip(actuated, arm.joint_guess, strict=False):
-        guess[joint.position_start()] = angle
+    guess = _joint_guess(scenario, plant, geometry)
     start = geometry.X_WE @ RigidTransform([0.0, 0.0, -scenario.trajectory.approach_height])
     try:
         return SolveSpatialInverseKinematics(plant, TOOL_TIP_FRAME, start, guess)
@@ -302,18 +310,18 @@ def CheckSpatialPlan(loop: SpatialLoop, step: float = 0.05) -> None:
     speed_limits = plant.GetVelocityUpperLimits()
     times = sorted({*np.arange(0.0, scenario.duration, step), *plan.get_segment_times()})
     q = np.asarray(loop.initial_positions, dtype=float)
+    guess = _joint_guess(scenario, plant, geometry)
     for time in (t for t in times if t <= scenario.duration):
         point = plan.value(time)[:, 0]
         where = f"({', '.join(f'{1e3 * v:.1f}' for v in point[:3])}) mm in the control frame"
         pose = geometry.X_WE @ RigidTransform(point[:3])
-        try:
-            q = SolveSpatialInverseKinematics(plant, TOOL_TIP_FRAME, pose, q)
-        except ValueError:
+        q = _solve_from(plant, pose, (q, guess))
+        if q is None:
             raise ScenarioError(
-                f"surface.position, trajectory.slide_distance, trajectory.slide_direction: the "
-                f"plan's point at t = {time:.2f} s, {where}, is out of the arm's reach or beyond "
-                "its joint limits"
-            ) from None
+                f"surface.position, trajectory.slide_distance, trajectory.slide_direction, "
+                f"arm.joint_guess: the plan's point at t = {time:.2f} s, {where}, is out of the "
+                "arm's reach or beyond its joint limits"
+            )
         speeds = _joint_speeds(kinematics, q, plan.EvalDerivative(time, 1)[:, 0])
         if np.any(np.abs(speeds) > speed_limits):
             needed = ", ".join(f"{abs(v):.3g}" for v in speeds)
@@ -328,6 +336,17 @@ def CheckSpatialPlan(loop: SpatialLoop, step: float = 0.05) -> None:
                 f"({needed}) rad/s, beyond the model's velocity limits ({allowed}) rad/s"
             )
         _check_within_effort_limits(loop, kinematics, q, where, time >= scenario.press_start)
+
+
+def _solve_from(plant, pose: RigidTransform, seeds) -> np.ndarray | None:
+    """The inverse kinematics of the tool tip's `pose` from the first seed it converges
+    from (the previous point's joints, then the scenario's guess), None if none does."""
+    for seed in seeds:
+        try:
+            return SolveSpatialInverseKinematics(plant, TOOL_TIP_FRAME, pose, seed)
+        except ValueError:
+            continue
+    return None
 
 
 def _check_within_effort_limits(loop: SpatialLoop, kinematics, q, where: str, pressing) -> None:
