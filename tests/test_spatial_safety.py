@@ -119,3 +119,52 @@ def test_bad_safety_keys_are_one_line_errors_naming_the_key(overrides, message):
         load_scenario("panda_surface_press", overrides)
     assert str(error.value).startswith(message)
     assert "\n" not in str(error.value)
+
+
+STUCK = [
+    "duration=4.5",
+    "faults=[{kind: sensor_stuck, start: 3.0, end: 3.6, value: 2.0}]",
+]
+
+
+@needs_robots
+@pytest.mark.parametrize("sensor", [[], ["sensor.kind=wrench", "sensor.noise_std=0.05"]])
+def test_a_wrist_reading_stuck_mid_press_is_caught_and_the_force_held(sensor):
+    """The reading sticks at 2 N for 0.6 s while the Panda presses 10 N. Without the layer
+    the law integrates E = 8 N until Xr meets max_push: by hand the force rises by the
+    PID's z stiffness in series with the table's, 1 / (1/2000 + 1/1e5) = 1961 N/m, times
+    max_push - Fr / Kp = 45 mm, to 10 + 88.2 = 98.2 N (measured 98.6 N). With the layer
+    the monitor finds the reading implausible against the observer within its detection
+    delay (4 ms, measured) and the law holds: the force stays under 1.1 Fr (10.78 N,
+    measured); the same with the wrist sensor (noise 0.05 N), whose reading along z the
+    fault replaces: there a noisy reading gone flat is also caught as stuck (both at
+    3.004 s, measured)."""
+    scenario = load_scenario("panda_surface_press", [*STUCK, *sensor])
+    without = run_spatial(scenario)
+    window = without.time >= 2.9
+    by_hand = 10.0 + (0.05 - 10.0 / 2000.0) / (1.0 / 2000.0 + 1.0 / 1e5)
+    assert np.max(without.force[window]) == pytest.approx(by_hand, rel=0.02)
+    guarded = load_scenario(
+        "panda_surface_press",
+        [*STUCK, *sensor, "safety.enabled=true", "safety.max_stiffness=1e5"],
+    )
+    held = run_spatial(guarded)
+    before = held.force[(held.time > 2.9) & (held.time < 3.0)]
+    assert np.all(np.abs(before - 10.0) < 0.2)  # pressing Fr when the fault comes
+    assert np.max(held.force[held.time >= 2.9]) < 1.1 * 10.0
+    detections = held.metrics["safety"]["detections"]
+    assert detections and detections[0]["kind"] in ("implausible", "stuck")
+    assert 3.0 <= detections[0]["time"] <= 3.0 + held.metrics["safety"]["detection_delay"]
+
+
+@pytest.mark.parametrize(
+    "fault, message",
+    [
+        ("{kind: wall_retract, start: 1, end: 2, value: 0.01}", "faults[0].kind"),
+        ("{kind: sensor_stuck, start: 1, end: 2, value: 2, noisy: true}", "faults[0].noisy"),
+        ("{kind: sensor_zero, start: 2, end: 1}", "faults[0].end"),
+    ],
+)
+def test_a_spatial_fault_the_arm_does_not_take_is_refused_in_one_line(fault, message):
+    with pytest.raises(ScenarioError, match=message.replace("[", r"\[").replace("]", r"\]")):
+        load_scenario("panda_surface_press", [f"faults=[{fault}]"])

@@ -99,6 +99,17 @@ def _AddNoise(builder, point: ForcePoint, size: int, std: float, period: float, 
     return None, zero.get_output_port()
 
 
+def _AddFaults(builder: DiagramBuilder, point: ForcePoint, reading_output):
+    """The point's injected sensor faults on `reading_output`: (the SensorFault or None,
+    the reading they leave)."""
+    if not point.sensor.faults:
+        return None, reading_output
+    fault = builder.AddSystem(SensorFault(list(point.sensor.faults)))
+    fault.set_name(point.system_name("sensor_fault"))
+    builder.Connect(reading_output, fault.measured_force_input)
+    return fault, fault.reported_force_output
+
+
 def _AddWrenchChain(
     builder: DiagramBuilder, point: ForcePoint, plant: MultibodyPlant, noise: bool
 ) -> SensorReading:
@@ -106,8 +117,6 @@ def _AddWrenchChain(
     chain = point.sensor
     if plant is None:
         raise ValueError("sensor.kind wrench: AddSensorChain needs the plant")
-    if chain.faults:
-        raise ValueError("sensor.kind wrench: sensor faults are for the one-axis sensors")
     sensor = builder.AddSystem(
         WrenchSensor(
             plant,
@@ -142,7 +151,9 @@ def _AddWrenchChain(
     )
     builder.Connect(noise_output, sensor.noise_input)
     sources = [] if source is None else [source]
-    return SensorReading(sensor, AddLatency(builder, point, frame.force_output), sources, frame)
+    # The faults replace the reading along the force axis (without noise: validated).
+    _, reading = _AddFaults(builder, point, frame.force_output)
+    return SensorReading(sensor, AddLatency(builder, point, reading), sources, frame)
 
 
 def AddSensorChain(
@@ -182,11 +193,7 @@ def AddSensorChain(
         system.set_name(point.system_name("flexiforce_sensor"))
         builder.Connect(contact_force_output, system.contact_force_input)
         measured_force_output = system.measured_force_output
-    if chain.faults:
-        fault = builder.AddSystem(SensorFault(list(chain.faults)))
-        fault.set_name(point.system_name("sensor_fault"))
-        builder.Connect(measured_force_output, fault.measured_force_input)
-        measured_force_output = fault.reported_force_output
+    fault, measured_force_output = _AddFaults(builder, point, measured_force_output)
     random_sources = []
     if system is None:
         return SensorReading(
@@ -200,7 +207,7 @@ def AddSensorChain(
         builder.Connect(noise_output, gain.get_input_port())
         noise_output = gain.get_output_port()
     builder.Connect(noise_output, system.noise_input)
-    if chain.faults and fault.noise_input is not None:
+    if fault is not None and fault.noise_input is not None:
         # A noisy fault keeps the same ADC noise the reading had.
         builder.Connect(noise_output, fault.noise_input)
     return SensorReading(system, AddLatency(builder, point, measured_force_output), random_sources)

@@ -500,10 +500,12 @@ def spatial_point(
         "stiffness": controller.stiffness,
     }
     sensor = scenario.sensor
-    chain = sensor_chain(sensor, noise_period=period, period=period)
+    faults = [(f.kind, f.start, f.end, f.value, f.noisy) for f in scenario.faults]
+    chain = sensor_chain(sensor, noise_period=period, period=period, faults=faults)
     if sensor.kind == "wrench":
         chain = sensor_chain(
             sensor,
+            faults=faults,
             noise_period=sensor.period or period,
             period=sensor.period or period,
             weld_joint=TOOL_WELD,

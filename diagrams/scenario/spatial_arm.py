@@ -26,6 +26,7 @@ from admittance.diagrams.scenario.schema import load_typed
 from admittance.diagrams.scenario.sections import (
     AdmittanceSection,
     ControllerSection,
+    FaultConfig,
     LoggingConfig,
     PidSection,
     SafetyConfig,
@@ -35,6 +36,7 @@ from admittance.diagrams.scenario.validation import (
     PID_GAINS,
     RANGES,
     Range,
+    check_fault_timing,
     require,
     require_one_of,
     require_range,
@@ -43,6 +45,7 @@ from admittance.diagrams.scenario.validation import (
 
 __all__ = [
     "SPATIAL_CONTROLLER_KINDS",
+    "SPATIAL_FAULT_KINDS",
     "SPATIAL_COORDINATES",
     "SPATIAL_SENSOR_KINDS",
     "TOOL_SHAPES",
@@ -256,6 +259,10 @@ class SpatialScenario:
     pid: SpatialPidConfig = field(default_factory=SpatialPidConfig)
     sensor: SpatialSensorConfig = field(default_factory=SpatialSensorConfig)
     safety: SpatialSafetyConfig = field(default_factory=SpatialSafetyConfig)
+    # Injected faults of the force reading (the shared section's sensor kinds: the reading
+    # along the control frame's z reads NaN, a stuck value, 0 N or a full-scale value);
+    # none by default.
+    faults: list[FaultConfig] = field(default_factory=list)
     logging: LoggingConfig = field(default_factory=LoggingConfig)
     # Name of the scenario (informational).
     name: str = "custom_spatial"
@@ -424,7 +431,21 @@ def validate_spatial(scenario: SpatialScenario) -> SpatialScenario:
             s.admittance.max_push,
         )
     _check_spatial_safety(s)
+    _check_spatial_faults(s)
     return scenario
+
+
+#: The fault kinds a spatial arm takes: the force reading's.
+SPATIAL_FAULT_KINDS = ("sensor_nan", "sensor_stuck", "sensor_zero", "sensor_saturated")
+
+
+def _check_spatial_faults(s: SpatialScenario) -> None:
+    """faults: the reading's kinds, timed, with a finite value; no `noisy` (the wrist
+    sensor's noise is 6-D, drawn in its own frame, not the reading's)."""
+    for i, fault in enumerate(s.faults):
+        key = f"faults[{i}]"
+        check_fault_timing(fault, key, SPATIAL_FAULT_KINDS)
+        require(not fault.noisy, key + ".noisy", "false on a spatial arm", fault.noisy)
 
 
 def _check_spatial_safety(s: SpatialScenario) -> None:

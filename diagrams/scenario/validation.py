@@ -24,6 +24,7 @@ from admittance.diagrams.scenario.sections import FAULT_KINDS, NOISY_FAULT_KINDS
 
 __all__ = [
     "MAX_SEED",
+    "check_fault_timing",
     "MAX_STIFFNESS",
     "PID_GAINS",
     "RANGES",
@@ -206,6 +207,16 @@ def _check_lists(s: Scenario) -> None:
     )
 
 
+def check_fault_timing(fault, key: str, kinds) -> None:
+    """A fault entry's kind (one of `kinds`), its start (>= 0 s), end (> start) and a
+    finite value; what each kind asks of its value is the robot's to check."""
+    finite = math.isfinite
+    require_one_of(fault.kind, key + ".kind", kinds)
+    require(finite(fault.start) and fault.start >= 0, key + ".start", ">= 0 s", fault.start)
+    require(finite(fault.end) and fault.end > fault.start, key + ".end", "> start", fault.end)
+    require(finite(fault.value), key + ".value", "finite", fault.value)
+
+
 def _check_entries(s: Scenario) -> None:
     """The entries of wall.stiffness_steps and faults."""
     finite = math.isfinite
@@ -222,10 +233,7 @@ def _check_entries(s: Scenario) -> None:
         previous = step.time
     for i, fault in enumerate(s.faults):
         key = f"faults[{i}]"
-        require_one_of(fault.kind, key + ".kind", FAULT_KINDS)
-        require(finite(fault.start) and fault.start >= 0, key + ".start", ">= 0 s", fault.start)
-        require(finite(fault.end) and fault.end > fault.start, key + ".end", "> start", fault.end)
-        require(finite(fault.value), key + ".value", "finite", fault.value)
+        check_fault_timing(fault, key, FAULT_KINDS)
         if fault.kind == "stiffness_jump":
             require(
                 0 < fault.value <= MAX_STIFFNESS,
