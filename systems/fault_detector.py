@@ -100,11 +100,15 @@ def _value(x) -> float:
 
 def unexplained_torque(residual, normal_row) -> float:
     """|r_perp|, N m: the norm of the part of the external joint torque r that no force at
-    the fingertip along the normal explains (r minus its projection on j = J_x^T)."""
+    the fingertip along the normal explains (r minus its projection on j = J_x^T).
+
+    `normal_row` may be several rows R of the task Jacobian (the force axes a contact at
+    the tip can load: a tool's x, y and z, friction included): r_perp is then r minus its
+    projection on the columns of R^T."""
     residual = np.asarray(residual, dtype=float)
-    direction = np.asarray(normal_row, dtype=float)
-    explained = direction * (direction @ residual) / (direction @ direction)
-    return float(np.linalg.norm(residual - explained))
+    rows = np.atleast_2d(np.asarray(normal_row, dtype=float))
+    weights = np.linalg.lstsq(rows.T, residual, rcond=None)[0]
+    return float(np.linalg.norm(residual - rows.T @ weights))
 
 
 def plausibility_allowance(
@@ -118,8 +122,11 @@ def plausibility_allowance(
 
 def collision_tolerance(normal_row, force_tolerance: float) -> float:
     """|j| F_tol, N m: the largest joint torque a fingertip force within the plausibility
-    check's base tolerance makes; |r_perp| beyond it is evidence of a collision."""
-    return float(np.linalg.norm(np.asarray(normal_row, dtype=float))) * force_tolerance
+    check's base tolerance makes; |r_perp| beyond it is evidence of a collision. For
+    several rows R, |R^T|_2 F_tol (the largest singular value: the force's worst
+    direction)."""
+    rows = np.atleast_2d(np.asarray(normal_row, dtype=float))
+    return float(np.linalg.norm(rows, ord=2)) * force_tolerance
 
 
 @TemplateSystem.define("SensorFaultDetector_", T_list=[float, AutoDiffXd])
@@ -162,6 +169,7 @@ def SensorFaultDetector_(T):
             frozen: bool = False,
             coordinates=PLANAR_COORDINATES,
             expressed_in: str = "world",
+            contact_axes=None,
             converter=None,
         ) -> None:
             """
@@ -178,6 +186,10 @@ def SensorFaultDetector_(T):
                 frozen: no state, no check (analysis diagrams).
                 coordinates, expressed_in: the task vector X and its frame (the planar
                     arm's x, y, theta in world by default; the spatial arm's tool tip).
+                contact_axes: the indices in X of the forces a contact at the frame can
+                    make, which the collision check takes as explained (the normal alone
+                    by default: the planar arm's frictionless wall; a tool on a table
+                    with friction: its x, y and z).
             """
             LeafSystem_[T].__init__(self, converter=converter)
             for name, value in (
@@ -204,7 +216,9 @@ def SensorFaultDetector_(T):
                 frozen=frozen,
                 coordinates=tuple(coordinates),
                 expressed_in=expressed_in,
+                contact_axes=None if contact_axes is None else tuple(contact_axes),
             )
+            self._contact_axes = [normal_axis] if contact_axes is None else list(contact_axes)
             self._period = float(period)
             self._noise_std = float(noise_std)
             self._saturation_force = float(saturation_force)
@@ -376,9 +390,9 @@ def SensorFaultDetector_(T):
             collision_evidence = False
             if self.external_torque_input.HasValue(context):
                 residual = [_value(x) for x in self.external_torque_input.Eval(context)]
-                normal_row = jacobian[self._normal_axis]
-                collision_evidence = unexplained_torque(residual, normal_row) > (
-                    collision_tolerance(normal_row, self._force_tolerance)
+                rows = jacobian[self._contact_axes]
+                collision_evidence = unexplained_torque(residual, rows) > (
+                    collision_tolerance(rows, self._force_tolerance)
                 )
             if collision_evidence:
                 state[_COLLISION] += 1

@@ -64,6 +64,9 @@ class LayerNumbers:
     frozen: bool = False  # an analysis diagram: the detector passes the reading on
     frozen_estimate: float | None = None  # an analysis diagram: the estimate, N/m
     observer_period: float = 0.0  # 0: the observer integrates continuously; > 0: its tick, s
+    # The task axes whose forces a contact at the point can make (the collision check's
+    # explained torques; None: the normal alone).
+    contact_axes: tuple[int, ...] | None = None
 
 
 def law_arguments(admittance, safety, *, kp: float, kd: float, **robot) -> dict:
@@ -131,6 +134,7 @@ def AddLayerSystems(
             force_tolerance=TOLERANCE_SHARE * reference + TOLERANCE_NOISE_DEVIATIONS * noise,
             observer_gain=OBSERVER_GAIN,
             frozen=numbers.frozen,
+            contact_axes=numbers.contact_axes,
             **tip,
         )
     )
@@ -161,4 +165,8 @@ def AddLayerSystems(
     builder.Connect(detector.sensor_fault_output, law.sensor_fault_input)
     builder.Connect(estimator.stiffness_estimate_output, law.stiffness_estimate_input)
     builder.Connect(state, law.estimated_state_input)
+    # The collision reflex: the observer's residual that no contact force at the point
+    # explains.
+    builder.Connect(observer.external_torque_output, detector.external_torque_input)
+    builder.Connect(detector.collision_output, law.collision_input)
     return observer, detector, estimator, law

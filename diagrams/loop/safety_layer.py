@@ -49,6 +49,7 @@ __all__ = [
     "fault_detection",
     "first_contact_approach",
     "reach_limit",
+    "rising_edges",
     "sampled_damper_gain",
     "safety_columns",
     "stiffer_than_stated",
@@ -227,9 +228,6 @@ def AddSafetyLayer(
     model = plant if scenario.arm.payload_mass == 0.0 else ArmModel(scenario.arm)
     tip = dict(frame_name=frame, normal_axis=NORMAL_AXIS)
     observer, detector, estimator, law = AddLayerSystems(builder, plant, model, pid, tip, numbers)
-    # The collision reflex: the observer's residual off the normal's direction.
-    builder.Connect(observer.external_torque_output, detector.external_torque_input)
-    builder.Connect(detector.collision_output, law.collision_input)
     builder.Connect(trajectory.desired_velocity_output, law.desired_velocity_input)
     monitor = (
         None
@@ -305,8 +303,9 @@ def CapStepForSampledMonitor(scenario: Scenario, simulator) -> None:
 # --- metrics ----------------------------------------------------------------------------
 
 
-def _rising_edges(time: np.ndarray, flags: np.ndarray) -> list[dict]:
-    """Each time a flag turns on: {"time", "kind"}, in time order."""
+def rising_edges(time: np.ndarray, flags: np.ndarray) -> list[dict]:
+    """Each time a flag turns on: {"time", "kind"}, in time order (the columns: the
+    detector's FAULT_FLAGS, then its collision flag)."""
     detections = []
     for column, kind in enumerate(FAULT_FLAGS + ("collision",)):
         on = flags[:, column] > 0.5
@@ -380,7 +379,7 @@ def safety_metrics(result) -> dict:
     logs = result.safety
     time = logs["time"]
     metrics = {key: value for key, value in logs["numbers"].items() if key != "in_contact"}
-    metrics["detections"] = _rising_edges(time, np.hstack([logs["fault_flags"], logs["collision"]]))
+    metrics["detections"] = rising_edges(time, np.hstack([logs["fault_flags"], logs["collision"]]))
     if "wall_approach_speed" in logs:
         metrics["detections"] = sorted(
             metrics["detections"] + wall_approach_detections(time, logs, result.scenario),

@@ -23,6 +23,7 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import (
+    ConstantVectorSource,
     Demultiplexer,
     RandomSource,
     TrajectorySource,
@@ -51,6 +52,7 @@ from admittance.diagrams.robots.spatial_arm import (
 from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.diagrams.scenario.spatial_arm import SPATIAL_COORDINATES, SpatialScenario
 from admittance.systems.directional_contact_force import DirectionalContactForce
+from admittance.systems.joint_torque_fault import JointTorqueFault
 from admittance.systems.spatial_kinematics import SpatialFrameKinematics
 
 __all__ = [
@@ -153,6 +155,31 @@ def spatial_force_reference(scenario: SpatialScenario) -> PiecewisePolynomial:
     return PiecewisePolynomial.FirstOrderHold(breaks, [[0.0, 0.0, scenario.force_reference]])
 
 
+def _AddJointTorqueFaults(builder: DiagramBuilder, scenario: SpatialScenario, plant) -> None:
+    """The scenario's joint_torque faults on the plant's applied generalized force: a link
+    hitting something (the contact engine's table is not part of it)."""
+    collisions = [
+        (f.start, f.end, f.value, f.joint) for f in scenario.faults if f.kind == "joint_torque"
+    ]
+    if not collisions:
+        return
+    nv = plant.num_velocities()
+    for index, fault in enumerate(scenario.faults):
+        if fault.kind == "joint_torque" and not 0 <= fault.joint < nv:
+            raise ScenarioError(
+                f"faults[{index}].joint: must be in [0, {nv - 1}] (the arm's moving joints "
+                f"from the base), got {fault.joint}"
+            )
+    none = builder.AddSystem(ConstantVectorSource(np.zeros(nv)))
+    none.set_name("no_applied_force")
+    fault = builder.AddSystem(JointTorqueFault(nv, collisions))
+    fault.set_name("joint_torque_fault")
+    builder.Connect(none.get_output_port(), fault.generalized_force_input)
+    builder.Connect(
+        fault.generalized_force_output, plant.get_applied_generalized_force_input_port()
+    )
+
+
 def BuildSpatialLoop(scenario: SpatialScenario, *, analysis: bool = False) -> SpatialLoop:
     """Wires the arm, its tool, the table and the tool tip's force loop for `scenario`.
 
@@ -188,6 +215,7 @@ def BuildSpatialLoop(scenario: SpatialScenario, *, analysis: bool = False) -> Sp
     kinematics = AddPointKinematics(builder, plant, point)
     pid = AddPointPid(builder, plant, point, kinematics, split.get_output_port(1))
     builder.Connect(pid.actuation_output, plant.get_actuation_input_port())
+    _AddJointTorqueFaults(builder, scenario, plant)
     reference = builder.AddSystem(TrajectorySource(spatial_force_reference(scenario)))
     reference.set_name("force_reference")
     admittance, safety = AddSpatialForceLoop(

@@ -14,10 +14,11 @@ systems/safety_numbers.py), its damper along z and its approach bound v_max from
 (safety.max_force) and Ke_max (safety.max_stiffness). The monitor checks the wrist
 sensor's reading against the momentum observer's force along z (with C(q, v)^T v) with
 the planar arm's tolerance, F_tol = 0.2 Fr + 6 sigma, sigma the wrist sensor's force
-noise, at the reading's period. What the planar arm's layer has and this one does not:
-the collision check (the observer's residual off the normal's direction: on a tool that
-slides, friction is such a residual) and the moving-wall monitor; the wrist sensor model
-has no full scale, so no saturation flag either.
+noise, at the reading's period. The collision check reads the observer's residual off
+the tool tip's three force rows (the normal and the friction across it, which the planar
+arm's frictionless rule would read as a collision), and the reflex backs the tool off.
+What the planar arm's layer has and this one does not: the moving-wall monitor; the wrist
+sensor model has no full scale, so no saturation flag either.
 """
 
 from __future__ import annotations
@@ -86,6 +87,7 @@ class SpatialSafetyLayer:
             "observed_force": self.observer.contact_force_output,
             "trusted_force": self.detector.trusted_force_output,
             "fault_flags": self.detector.fault_flags_output,
+            "collision": self.detector.collision_output,
             "stiffness_estimate": self.estimator.stiffness_estimate_output,
             "gain_scale": self.law.gain_scale_output,
         }
@@ -158,6 +160,8 @@ def AddSpatialForceLoop(
         max_stiffness=safety.max_stiffness,
         # The observer steps with the plant: the loop is sampled at time_step.
         observer_period=scenario.time_step,
+        # A tool on a table loads x, y (friction) and z: the collision check explains them.
+        contact_axes=(0, 1, 2),
         law=law_arguments(
             admittance,
             safety,

@@ -500,7 +500,11 @@ def spatial_point(
         "stiffness": controller.stiffness,
     }
     sensor = scenario.sensor
-    faults = [(f.kind, f.start, f.end, f.value, f.noisy) for f in scenario.faults]
+    faults = [
+        (f.kind, f.start, f.end, f.value, f.noisy)
+        for f in scenario.faults
+        if f.kind.startswith("sensor_")
+    ]
     chain = sensor_chain(sensor, noise_period=period, period=period, faults=faults)
     if sensor.kind == "wrench":
         chain = sensor_chain(

@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from pydrake.systems.analysis import SimulatorConfig
 
+from admittance.diagrams.loop.safety_layer import rising_edges
 from admittance.diagrams.loop.spatial_arm import (
     BuildSpatialLoop,
     CheckSpatialPlan,
@@ -135,6 +136,7 @@ class SpatialResult(RunResult):
                 columns[name] = self.safety[name][:, 0]
             for column, kind in enumerate(FAULT_FLAGS):
                 columns[f"fault_{kind}"] = self.safety["fault_flags"][:, column]
+            columns["collision"] = self.safety["collision"][:, 0]
         return columns
 
 
@@ -194,12 +196,9 @@ def spatial_safety_metrics(result: SpatialResult) -> dict:
         metrics["first_contact_speed"] = float(result.normal_speed[touching[0] - 1])
         metrics["first_contact_peak_force"] = float(np.max(force[window]))
     metrics.update(logs.get("first_contact", {}))
-    flags = logs["fault_flags"] > 0.5
-    rising = flags & ~np.vstack([np.zeros((1, flags.shape[1]), bool), flags[:-1]])
-    metrics["detections"] = [
-        {"time": float(result.time[row]), "kind": FAULT_FLAGS[column]}
-        for row, column in zip(*np.nonzero(rising), strict=True)
-    ]
+    metrics["detections"] = rising_edges(
+        result.time, np.hstack([logs["fault_flags"], logs["collision"]])
+    )
     metrics["final_stiffness_estimate"] = float(logs["stiffness_estimate"][-1, 0])
     metrics["final_gain_scale"] = float(logs["gain_scale"][-1, 0])
     return metrics

@@ -37,6 +37,7 @@ from admittance.diagrams.scenario.validation import (
     RANGES,
     Range,
     check_fault_timing,
+    check_joint_torque_value,
     require,
     require_one_of,
     require_range,
@@ -435,17 +436,29 @@ def validate_spatial(scenario: SpatialScenario) -> SpatialScenario:
     return scenario
 
 
-#: The fault kinds a spatial arm takes: the force reading's.
-SPATIAL_FAULT_KINDS = ("sensor_nan", "sensor_stuck", "sensor_zero", "sensor_saturated")
+#: The fault kinds a spatial arm takes: the force reading's, and a torque on a joint (a
+#: link hitting something).
+SPATIAL_FAULT_KINDS = (
+    "sensor_nan",
+    "sensor_stuck",
+    "sensor_zero",
+    "sensor_saturated",
+    "joint_torque",
+)
+# The largest joint_torque fault, N m: beyond the Panda's and the UR5's largest efforts.
+MAX_SPATIAL_JOINT_TORQUE = 300.0
 
 
 def _check_spatial_faults(s: SpatialScenario) -> None:
-    """faults: the reading's kinds, timed, with a finite value; no `noisy` (the wrist
-    sensor's noise is 6-D, drawn in its own frame, not the reading's)."""
+    """faults: the kinds above, timed, with a finite value; no `noisy` (the wrist sensor's
+    noise is 6-D, drawn in its own frame, not the reading's). A joint_torque's joint is
+    checked against the model where it is loaded (loop.spatial_arm)."""
     for i, fault in enumerate(s.faults):
         key = f"faults[{i}]"
         check_fault_timing(fault, key, SPATIAL_FAULT_KINDS)
         require(not fault.noisy, key + ".noisy", "false on a spatial arm", fault.noisy)
+        if fault.kind == "joint_torque":
+            check_joint_torque_value(fault, key, MAX_SPATIAL_JOINT_TORQUE)
 
 
 def _check_spatial_safety(s: SpatialScenario) -> None:

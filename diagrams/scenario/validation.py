@@ -25,6 +25,7 @@ from admittance.diagrams.scenario.sections import FAULT_KINDS, NOISY_FAULT_KINDS
 __all__ = [
     "MAX_SEED",
     "check_fault_timing",
+    "check_joint_torque_value",
     "MAX_STIFFNESS",
     "PID_GAINS",
     "RANGES",
@@ -217,6 +218,16 @@ def check_fault_timing(fault, key: str, kinds) -> None:
     require(finite(fault.value), key + ".value", "finite", fault.value)
 
 
+def check_joint_torque_value(fault, key: str, max_torque: float) -> None:
+    """A joint_torque fault's value: non-zero and within +-`max_torque` N m."""
+    require(
+        fault.value != 0 and abs(fault.value) <= max_torque,
+        key + ".value",
+        f"non-zero and within +-{max_torque:g} N m for joint_torque",
+        fault.value,
+    )
+
+
 def _check_entries(s: Scenario) -> None:
     """The entries of wall.stiffness_steps and faults."""
     finite = math.isfinite
@@ -260,12 +271,7 @@ def _check_entries(s: Scenario) -> None:
                 fault.noisy,
             )
         if fault.kind == "joint_torque":
-            require(
-                fault.value != 0 and abs(fault.value) <= MAX_JOINT_TORQUE,
-                key + ".value",
-                f"non-zero and within +-{MAX_JOINT_TORQUE:g} N m for joint_torque",
-                fault.value,
-            )
+            check_joint_torque_value(fault, key, MAX_JOINT_TORQUE)
 
 
 def _check_choices(s: Scenario) -> None:
