@@ -331,3 +331,22 @@ def test_a_press_beyond_the_arms_effort_limits_is_refused(tmp_path, capsys):
     error = capsys.readouterr().err.strip().splitlines()
     assert len(error) == 1 and "force_reference: pressing 10 N" in error[0]
     assert "0.586" in error[0] and not out.exists()
+
+
+@needs_robots
+def test_the_controller_refuses_a_plan_the_robot_could_not_follow(tmp_path, capsys):
+    """An approach of 20 cm in 50 ms (the cubic's peak, 1.5 x 0.2 / 0.05 = 6 m/s, inside
+    the piece, between the 50 ms grid's points) needs the wrist joints at 6.7 rad/s:
+    `admittance control` refuses it in one line, exit 2, before it waits for the robot,
+    as `simulate` does; nothing is written."""
+    from admittance.diagrams.app.cli import main
+
+    over = ["--set", "trajectory.approach_time=0.05", "--set", "trajectory.approach_height=0.2"]
+    for command in (["simulate"], ["control", "--lcm", "memq://"]):
+        out = tmp_path / command[0]
+        assert (
+            main([command[0], "panda_surface_press", *command[1:], *over, "--out", str(out)]) == 2
+        )
+        error = capsys.readouterr().err.strip().splitlines()
+        assert len(error) == 1 and "trajectory.approach_time" in error[-1], error
+        assert "velocity limits" in error[-1] and not out.exists()

@@ -321,11 +321,11 @@ def CheckSpatialPlan(loop: SpatialLoop, step: float = 0.05) -> None:
     """Rejects a plan the arm cannot reach, follow or press with, naming the keys, as the
     planar arm's CheckTrajectoryReachable does.
 
-    Samples Xd(t) every `step` s (and at the plan's breaks) and solves the inverse
-    kinematics of each point from the previous one: each must lie within the joint limits,
-    the joint speeds that follow dXd/dt within the model's velocity limits, and at the
-    press the torques that hold Fr along E's z against gravity, J^T F - tau_g, within its
-    effort limits.
+    Samples Xd(t) every `step` s (and at 9 points of each of the plan's pieces) and
+    solves the inverse kinematics of each point from the previous one: each must lie
+    within the joint limits, the joint speeds that follow dXd/dt within the model's
+    velocity limits, and the torques that hold the arm against gravity and, from the
+    press on, Fr along E's z, J^T F - tau_g, within its effort limits.
 
     Raises:
         ScenarioError: one line naming the keys and the first point that fails.
@@ -336,7 +336,13 @@ def CheckSpatialPlan(loop: SpatialLoop, step: float = 0.05) -> None:
         plant, TOOL_TIP_FRAME, coordinates=SPATIAL_COORDINATES, expressed_in=CONTROL_FRAME
     )
     speed_limits = plant.GetVelocityUpperLimits()
-    times = sorted({*np.arange(0.0, scenario.duration, step), *plan.get_segment_times()})
+    # Every `step`, and 8 points inside each of the plan's pieces: a short approach's
+    # fastest point is inside it, between two grid points.
+    breaks = plan.get_segment_times()
+    inside = (np.linspace(a, b, 9) for a, b in zip(breaks[:-1], breaks[1:], strict=True))
+    times = sorted(
+        {*np.arange(0.0, scenario.duration, step), *breaks, *np.concatenate(list(inside))}
+    )
     q = np.asarray(loop.initial_positions, dtype=float)
     guess = _joint_guess(scenario, plant, geometry)
     for time in (t for t in times if t <= scenario.duration):
