@@ -10,6 +10,7 @@ import pytest
 from drake import lcmt_force_torque, lcmt_panda_command, lcmt_panda_status
 from pydrake.lcm import DrakeLcm
 
+from admittance.diagrams.app.cli import main
 from admittance.diagrams.hardware.config import load_hardware_config, spatial_scenario
 from admittance.diagrams.hardware.control_law import SpatialControlLaw
 from admittance.diagrams.hardware.controller import AdmittanceController
@@ -556,3 +557,24 @@ def test_fr_from_10_to_5_n_while_running_follows_without_overshoot_beyond_10_per
     after = run.force[run.times >= 3.0]
     assert np.min(after) > 5.0 - 0.1 * 5.0  # no overshoot below 4.5 N
     assert after[-1] == pytest.approx(5.0, abs=0.25)
+
+
+@pytest.mark.parametrize(
+    "override, key",
+    [
+        ("safety.enabled=true", "safety.enabled"),
+        ("faults=[{kind: sensor_stuck, start: 1, end: 2, value: 2}]", "faults"),
+        ("faults=[{kind: joint_torque, start: 1, end: 2, value: 5, joint: 3}]", "faults"),
+    ],
+)
+def test_what_the_split_does_not_run_is_refused_in_one_line(override, key, tmp_path, capsys):
+    """The safety layer and injected faults run in `simulate`, not in the split: a user
+    who sets them must not believe the robot is guarded by the layer, or that a fault was
+    injected. Both commands refuse them in one line, exit 2, and write nothing."""
+    for command in ("control", "station"):
+        out = tmp_path / command
+        argv = [command, "panda_surface_press", "--lcm", "memq://", "--set", override]
+        assert main([*argv, "--out", str(out)]) == 2
+        error = capsys.readouterr().err.strip().splitlines()
+        assert len(error) == 1 and error[0].startswith(f"admittance: error: {key}:"), error
+        assert not out.exists()

@@ -104,15 +104,11 @@ def test_the_station_bears_the_bound_out(rate, settles):
 
 
 def test_a_scenario_the_reduced_model_does_not_cover_is_checked_as_far_as_it_goes():
-    """With the safety layer on, the force loop is checked as without it (the same critical
-    Gamma); with a law other than the paper's, the damper alone (no critical Gamma)."""
+    """With a law other than the paper's, the damper alone (no critical Gamma). (The
+    safety layer is refused by the split: test_hardware.py.)"""
     plain = AdmittanceController(
         load_hardware_config("panda_surface_press"), DrakeLcm("memq://")
     ).start_check
-    safe = AdmittanceController(
-        load_hardware_config("panda_surface_press", ["safety.enabled=true"]), DrakeLcm("memq://")
-    ).start_check
-    assert safe.critical_gamma == plain.critical_gamma and safe.stable
     other = AdmittanceController(
         load_hardware_config("panda_surface_press", ["controller.kind=classical_admittance"]),
         DrakeLcm("memq://"),

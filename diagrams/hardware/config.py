@@ -176,6 +176,25 @@ def spatial_scenario(config: HardwareConfig) -> SpatialScenario:
     return load_spatial_scenario(data, config.scenario_overrides)
 
 
+def _check_what_the_hardware_runs(scenario: SpatialScenario) -> None:
+    """Refuses, in one line, what a scenario asks for that the split does not run: the
+    safety layer (the controller runs the paper's law with its watchdogs, not the layer:
+    a user who set it must not believe the robot is guarded by it) and injected faults
+    (the station publishes its wrist sensor's whole wrench, and its plant takes no
+    injected torques)."""
+    if scenario.safety.enabled:
+        raise ScenarioError(
+            "safety.enabled: the hardware controller runs the paper's law with its watchdogs, "
+            "not the safety layer (docs/hardware.md); set it to false, or run the layer "
+            "with admittance simulate"
+        )
+    if scenario.faults:
+        raise ScenarioError(
+            "faults: the station publishes its wrist sensor's wrench and steps its plant "
+            "without injected faults; remove them (admittance simulate runs them)"
+        )
+
+
 def load_hardware_config(source: str | Path | None = None, overrides=()) -> HardwareConfig:
     """The hardware settings of a spatial scenario (a built-in name or a YAML file; None:
     ``panda_surface_press``), with --set overrides.
@@ -194,6 +213,7 @@ def load_hardware_config(source: str | Path | None = None, overrides=()) -> Hard
     config = load_typed(section, HardwareConfig, ())
     config.scenario, config.scenario_overrides = source, rest
     scenario = spatial_scenario(config)
+    _check_what_the_hardware_runs(scenario)
     config.name = scenario.name
     config.duration = scenario.duration if duration is None else duration
     if not (isinstance(config.duration, int | float) and 0 < config.duration < math.inf):
