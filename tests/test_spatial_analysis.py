@@ -242,15 +242,26 @@ def test_an_unstable_gamma_is_analysed_not_refused(tmp_path):
 
 
 @needs_robots
-def test_the_safety_layer_is_refused_in_one_line_before_any_run(tmp_path, capsys, monkeypatch):
+@pytest.mark.parametrize(
+    "override, key",
+    [
+        ("safety.enabled=true", "safety.enabled"),
+        ("faults=[{kind: sensor_zero, start: 5, end: 6}]", "faults"),
+    ],
+)
+def test_what_the_analysis_does_not_read_is_refused_in_one_line_before_any_run(
+    override, key, tmp_path, capsys, monkeypatch
+):
     """The analysis reads the loop without the layer (its observer integrates between the
-    plant's steps, a state one step's map does not hold): one line naming the key."""
+    plant's steps, a state one step's map does not hold) and without injected faults (a
+    fault active at the run's end would be linearized as the loop): one line naming the
+    key."""
 
     def no_run(*args, **kwargs):
         raise AssertionError("the scenario was run before the refusal")
 
     monkeypatch.setattr(spatial_analysis, "loop_step_map", no_run)
-    argv = ["stability", "panda_surface_press", "--set", "safety.enabled=true"]
+    argv = ["stability", "panda_surface_press", "--set", override]
     assert main([*argv, "--out", str(tmp_path / "x")]) != 0
     error = capsys.readouterr().err.strip().splitlines()
-    assert len(error) == 1 and "safety.enabled" in error[0]
+    assert len(error) == 1 and error[0].startswith(f"admittance: error: {key}:")

@@ -160,7 +160,7 @@ def apparent_mass(plant, plant_context) -> dict:
 
 def check_reducible(scenario: SpatialScenario) -> None:
     """Raises ScenarioError (one line) unless the analysis covers `scenario`: the paper's
-    law with the ideal sensor, without the safety layer."""
+    law with the ideal sensor, without the safety layer or injected faults."""
     if scenario.controller.kind != "optimal_admittance":
         raise ScenarioError(
             f"controller.kind: the stability analysis reads the paper's law "
@@ -174,6 +174,11 @@ def check_reducible(scenario: SpatialScenario) -> None:
         raise ScenarioError(
             "safety.enabled: the stability analysis reads the loop without the safety layer "
             "(its observer integrates between the plant's steps); set it to false"
+        )
+    if scenario.faults:
+        raise ScenarioError(
+            "faults: the stability analysis reads the loop at its contact equilibrium, "
+            "without injected faults; remove them"
         )
 
 
