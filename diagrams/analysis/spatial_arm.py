@@ -98,18 +98,28 @@ class NormalModel:
         return NormalModel(**{**self.__dict__, "gamma": gamma})
 
 
-def normal_map(model: NormalModel) -> np.ndarray:
+def normal_map(model: NormalModel, *, after_step: bool = False) -> np.ndarray:
     """A of x[k+1] = A x[k], x = [z, v, u, w, zi, Xr] (see the module's docstring; without
-    w when Ki = 0)."""
+    w when Ki = 0).
+
+    With `after_step`, the PID and the law read the state after the plant's step (z', v'
+    and the force of the step just taken), as in Drake's order for the simulated loop,
+    where the plant steps in an unrestricted update before the controllers' discrete
+    updates; without it they read the state before it: one period more of delay, the
+    hardware split's (the controller answers the status of t_k, its command acts from
+    t_k+1)."""
     m, k, c = model.mass, model.contact_stiffness, model.contact_damping
     h, kp, kd, ki = model.period, model.kp, model.kd, model.ki
     gain = model.gamma * model.kp  # Gamma K
     den = m + h * c + h * h * k
     v_next = np.array([-h * k, m, h, 0.0, 0.0, 0.0]) / den
     z_next = np.array([1.0, 0, 0, 0, 0, 0]) + h * v_next
-    error = -np.array([k, c, 0, 0, 0, 0])  # E = -(k z + c v)
-    u_next = np.array([-kp, -kd, 0.0, ki, 0.0, kp])
-    w_next = np.array([-h, 0.0, 0.0, 1.0, 0.0, h])
+    # What the controllers read: z and v now, or after the step.
+    z_read = z_next if after_step else np.array([1.0, 0, 0, 0, 0, 0])
+    v_read = v_next if after_step else np.array([0.0, 1.0, 0, 0, 0, 0])
+    error = -(k * z_read + c * v_read)  # E = -(k z + c v)
+    u_next = -kp * z_read - kd * v_read + np.array([0.0, 0.0, 0.0, ki, 0.0, kp])
+    w_next = -h * z_read + np.array([0.0, 0.0, 0.0, 1.0, 0.0, h])
     xr_next = gain * (np.array([0, 0, 0, 0, 1.0, 0]) + model.alpha * error)
     zi_next = np.array([0, 0, 0, 0, 1.0, 0]) + h * error
     A = np.vstack([z_next, v_next, u_next, w_next, zi_next, xr_next])
@@ -209,10 +219,16 @@ def normal_model(scenario: SpatialScenario, positions) -> tuple[NormalModel, dic
     return model, masses
 
 
-def spatial_critical_gamma(model: NormalModel, low: float = 1e-8, high: float = 1e-2):
-    """The smallest Gamma at which the sampled map's spectral radius reaches 1."""
+def spatial_critical_gamma(
+    model: NormalModel, low: float = 1e-8, high: float = 1e-2, *, after_step: bool = False
+):
+    """The smallest Gamma at which the sampled map's spectral radius reaches 1 (with the
+    controllers reading the state before the plant's step, or `after_step`)."""
     return critical_gain(
-        lambda gamma: normal_map(model.with_gamma(gamma)), low, high, period=model.period
+        lambda gamma: normal_map(model.with_gamma(gamma), after_step=after_step),
+        low,
+        high,
+        period=model.period,
     )
 
 
@@ -316,6 +332,7 @@ def analyse_spatial_stability(
         "critical_gamma": critical,
         "margin": critical / model.gamma if critical else math.inf,
         "continuous_critical_gamma": routh_critical_gamma(model),
+        "after_step_critical_gamma": spatial_critical_gamma(model, after_step=True),
     }
     summary["whole_loop"] = whole
     if confirm and critical is not None:

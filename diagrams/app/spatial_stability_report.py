@@ -58,7 +58,9 @@ def format_spatial_report(summary: dict) -> str:
         "",
         f"Critical Gamma (spectral radius reaches 1): {number(summary['critical_gamma'], digits=4)}"
         f" = {number(summary['margin'], digits=3)} x the scenario's; the continuous loop's "
-        f"(Routh, h -> 0): {number(summary['continuous_critical_gamma'], digits=4)}",
+        f"(Routh, h -> 0): {number(summary['continuous_critical_gamma'], digits=4)}; with the "
+        "controllers reading the state after the plant's step (Drake's order in simulate): "
+        f"{number(summary['after_step_critical_gamma'], digits=4)}",
     ]
     whole = summary.get("whole_loop")
     if whole is not None:
