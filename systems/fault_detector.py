@@ -66,6 +66,7 @@ __all__ = [
     "SensorFaultDetector",
     "SensorFaultDetector_",
     "collision_tolerance",
+    "contact_torque_check",
     "plausibility_allowance",
     "unexplained_torque",
 ]
@@ -105,10 +106,7 @@ def unexplained_torque(residual, normal_row) -> float:
     `normal_row` may be several rows R of the task Jacobian (the force axes a contact at
     the tip can load: a tool's x, y and z, friction included): r_perp is then r minus its
     projection on the columns of R^T."""
-    residual = np.asarray(residual, dtype=float)
-    rows = np.atleast_2d(np.asarray(normal_row, dtype=float))
-    weights = np.linalg.lstsq(rows.T, residual, rcond=None)[0]
-    return float(np.linalg.norm(residual - rows.T @ weights))
+    return contact_torque_check(residual, normal_row, 0.0)[0]
 
 
 def plausibility_allowance(
@@ -125,8 +123,26 @@ def collision_tolerance(normal_row, force_tolerance: float) -> float:
     check's base tolerance makes; |r_perp| beyond it is evidence of a collision. For
     several rows R, |R^T|_2 F_tol (the largest singular value: the force's worst
     direction)."""
-    rows = np.atleast_2d(np.asarray(normal_row, dtype=float))
-    return float(np.linalg.norm(rows, ord=2)) * force_tolerance
+    rows = np.asarray(normal_row, dtype=float)
+    if rows.ndim == 1:
+        return float(np.linalg.norm(rows)) * force_tolerance
+    return float(np.linalg.svd(rows, compute_uv=False)[0]) * force_tolerance
+
+
+def contact_torque_check(residual, normal_row, force_tolerance: float) -> tuple[float, float]:
+    """(|r_perp|, the collision tolerance) of unexplained_torque and collision_tolerance
+    at once: one row by its dot products, several by one SVD of R^T (its left singular
+    vectors span the explained torques, its largest singular value is |R^T|_2), as the
+    monitor evaluates them on every sample."""
+    residual = np.asarray(residual, dtype=float)
+    rows = np.asarray(normal_row, dtype=float)
+    if rows.ndim == 1:
+        squared = rows @ rows
+        unexplained = residual - rows * (rows @ residual) / squared
+        return float(np.linalg.norm(unexplained)), float(np.sqrt(squared)) * force_tolerance
+    basis, singular, _ = np.linalg.svd(rows.T, full_matrices=False)
+    unexplained = residual - basis @ (basis.T @ residual)
+    return float(np.linalg.norm(unexplained)), float(singular[0]) * force_tolerance
 
 
 @TemplateSystem.define("SensorFaultDetector_", T_list=[float, AutoDiffXd])
@@ -391,9 +407,10 @@ def SensorFaultDetector_(T):
             if self.external_torque_input.HasValue(context):
                 residual = [_value(x) for x in self.external_torque_input.Eval(context)]
                 rows = jacobian[self._contact_axes]
-                collision_evidence = unexplained_torque(residual, rows) > (
-                    collision_tolerance(rows, self._force_tolerance)
-                )
+                if len(self._contact_axes) == 1:
+                    rows = rows[0]
+                unexplained, tolerance = contact_torque_check(residual, rows, self._force_tolerance)
+                collision_evidence = unexplained > tolerance
             if collision_evidence:
                 state[_COLLISION] += 1
                 if state[_COLLISION] >= COLLISION_SAMPLES:
