@@ -309,14 +309,6 @@ def _initial_positions(
         ) from None
 
 
-def _joint_speeds(kinematics: SpatialFrameKinematics, q, task_velocity) -> np.ndarray:
-    """The joint speeds that move the tool tip at `task_velocity` (x, y, z, rx, ry, rz in E)
-    from q (least squares: a redundant arm's least-norm speeds)."""
-    kinematics.set_state(np.concatenate([q, np.zeros(q.size)]))
-    jacobian = np.asarray(kinematics.jacobian(), dtype=float)
-    return np.linalg.lstsq(jacobian, np.asarray(task_velocity), rcond=None)[0]
-
-
 def CheckSpatialPlan(loop: SpatialLoop, step: float = 0.05) -> None:
     """Rejects a plan the arm cannot reach, follow or press with, naming the keys, as the
     planar arm's CheckTrajectoryReachable does.
@@ -356,7 +348,12 @@ def CheckSpatialPlan(loop: SpatialLoop, step: float = 0.05) -> None:
                 f"arm.joint_guess: the plan's point at t = {time:.2f} s, {where}, is out of the "
                 "arm's reach or beyond its joint limits"
             )
-        speeds = _joint_speeds(kinematics, q, plan.EvalDerivative(time, 1)[:, 0])
+        # At q, at rest: the Jacobian for the speeds and the press, the context for gravity.
+        kinematics.set_state(np.concatenate([q, np.zeros(q.size)]))
+        jacobian = np.asarray(kinematics.jacobian(), dtype=float)
+        # The least-norm joint speeds that move the tip at dXd/dt (a redundant arm's).
+        velocity = plan.EvalDerivative(time, 1)[:, 0]
+        speeds = np.linalg.lstsq(jacobian, velocity, rcond=None)[0]
         if np.any(np.abs(speeds) > speed_limits):
             needed = ", ".join(f"{abs(v):.3g}" for v in speeds)
             allowed = ", ".join(f"{v:.3g}" for v in speed_limits)
@@ -369,7 +366,8 @@ def CheckSpatialPlan(loop: SpatialLoop, step: float = 0.05) -> None:
                 f"{keys}: following the plan at t = {time:.2f} s, {where}, needs joint speeds "
                 f"({needed}) rad/s, beyond the model's velocity limits ({allowed}) rad/s"
             )
-        _check_within_effort_limits(loop, kinematics, q, where, time >= scenario.press_start)
+        pressing = time >= scenario.press_start
+        _check_within_effort_limits(loop, kinematics.context, jacobian, where, pressing)
 
 
 def _solve_from(plant, pose: RigidTransform, seeds) -> np.ndarray | None:
@@ -383,25 +381,27 @@ def _solve_from(plant, pose: RigidTransform, seeds) -> np.ndarray | None:
     return None
 
 
-def _check_within_effort_limits(loop: SpatialLoop, kinematics, q, where: str, pressing) -> None:
-    """At rest, holding the arm against gravity and, `pressing`, Fr along E's z:
-    tau = J^T F - tau_g within the PID's effort limits."""
-    scenario, plant = loop.scenario, loop.plant
-    plant_context = plant.CreateDefaultContext()
-    plant.SetPositions(plant_context, q)
-    torque = -plant.CalcGravityGeneralizedForces(plant_context)
+def _check_within_effort_limits(
+    loop: SpatialLoop, plant_context, jacobian, where: str, pressing: bool
+) -> None:
+    """At rest at `plant_context`'s q, holding the arm against gravity and, `pressing`, Fr
+    along E's z: tau = J^T F - tau_g within the PID's effort limits."""
+    scenario = loop.scenario
+    torque = -loop.plant.CalcGravityGeneralizedForces(plant_context)
     limits = loop.pid.effort_limits
-    what = "the arm's own weight"
-    if pressing and np.all(np.abs(torque) <= limits):
-        kinematics.set_state(np.concatenate([q, np.zeros(q.size)]))
+    # The press is checked once the arm can hold itself: a failure then is Fr's.
+    pressed = pressing and bool(np.all(np.abs(torque) <= limits))
+    if pressed:
         force = np.zeros(SIZE)
         force[NORMAL_AXIS] = scenario.force_reference
-        torque = torque + np.asarray(kinematics.jacobian(), dtype=float).T @ force
-        what = f"pressing {scenario.force_reference:g} N"
+        torque = torque + jacobian.T @ force
     if np.any(np.abs(torque) > limits):
         needed = ", ".join(f"{abs(t):.3g}" for t in torque)
         allowed = ", ".join(f"{limit:.3g}" for limit in limits)
-        keys = "force_reference" if what.startswith("pressing") else "arm.urdf, tool.mass"
+        if pressed:
+            keys, what = "force_reference", f"pressing {scenario.force_reference:g} N"
+        else:
+            keys, what = "arm.urdf, tool.mass", "the arm's own weight"
         raise ScenarioError(
             f"{keys}: {what} at {where} needs joint torques ({needed}) N m, beyond the "
             f"model's effort limits ({allowed}) N m"
