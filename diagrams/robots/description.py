@@ -143,15 +143,21 @@ class ForcePoint:
         return f"{self.name}_{role}" if self.name else role
 
 
-def sensor_chain(section: SensorSection, **robot_keys) -> SensorChain:
+def sensor_chain(section: SensorSection, *, faults=(), **robot_keys) -> SensorChain:
     """A point's sensor chain from a scenario's shared `sensor` section (kind, filter
-    cut-off, noise), with what the robot adds (its readout period, noise period, faults,
-    the arm's hysteresis and drift) as keyword arguments."""
+    cut-off, noise) and its `faults` section's entries (the reading's kinds, sensor_*;
+    the others act elsewhere), with what the robot adds (its readout period, noise
+    period, the arm's hysteresis and drift) as keyword arguments."""
     return SensorChain(
         kind=section.kind,
         filter_cutoff=section.filter_cutoff,
         noise_std=section.noise_std,
         latency=section.latency,
+        faults=[
+            (f.kind, f.start, f.end, f.value, f.noisy)
+            for f in faults
+            if f.kind.startswith("sensor_")
+        ],
         **robot_keys,
     )
 

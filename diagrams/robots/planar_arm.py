@@ -202,11 +202,7 @@ def fingertip_point(scenario: Scenario) -> ForcePoint:
             noise_period=scenario.sensor.noise_period,
             hysteresis=scenario.sensor.hysteresis,
             drift=scenario.sensor.drift,
-            faults=[
-                (f.kind, f.start, f.end, f.value, f.noisy)
-                for f in scenario.faults
-                if f.kind.startswith("sensor_")
-            ],
+            faults=scenario.faults,
         ),
         law=force_law(
             scenario.controller_kind,

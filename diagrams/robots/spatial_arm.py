@@ -500,16 +500,10 @@ def spatial_point(
         "stiffness": controller.stiffness,
     }
     sensor = scenario.sensor
-    faults = [
-        (f.kind, f.start, f.end, f.value, f.noisy)
-        for f in scenario.faults
-        if f.kind.startswith("sensor_")
-    ]
-    chain = sensor_chain(sensor, noise_period=period, period=period, faults=faults)
+    # The readout at the step, or the wrist sensor at its weld with its own period.
+    readout = dict(noise_period=period, period=period)
     if sensor.kind == "wrench":
-        chain = sensor_chain(
-            sensor,
-            faults=faults,
+        readout = dict(
             noise_period=sensor.period or period,
             period=sensor.period or period,
             weld_joint=TOOL_WELD,
@@ -519,6 +513,7 @@ def spatial_point(
             bias=tuple(sensor.bias),
             torque_noise_std=sensor.torque_noise_std,
         )
+    chain = sensor_chain(sensor, faults=scenario.faults, **readout)
     pid = scenario.pid
     posture = None
     if plant.num_actuated_dofs() > len(SPATIAL_COORDINATES):
