@@ -150,7 +150,9 @@ def test_a_wrist_reading_stuck_mid_press_is_caught_and_the_force_held(sensor):
     )
     held = run_spatial(guarded)
     before = held.force[(held.time > 2.9) & (held.time < 3.0)]
-    assert np.all(np.abs(before - 10.0) < 0.2)  # pressing Fr when the fault comes
+    # Pressing Fr when the fault comes: within 0.5 mN (ideal) and 12.8 mN (the wrist
+    # sensor's 0.05 N noise through the law), measured; 0.05 N.
+    assert np.all(np.abs(before - 10.0) < 0.05)
     assert np.max(held.force[held.time >= 2.9]) < 1.1 * 10.0
     detections = held.metrics["safety"]["detections"]
     assert detections and detections[0]["kind"] in ("implausible", "stuck")
