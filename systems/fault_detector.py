@@ -380,9 +380,16 @@ def SensorFaultDetector_(T):
             )
             stiffness = _value(self.stiffness_estimate_input.Eval(context)[0])
             plant_state = self.estimated_state_input.Eval(context)
-            self._kinematics.set_state(np.array([T(_value(x)) for x in plant_state]))
-            velocity = np.array([_value(x) for x in plant_state[self._num_positions :]])
-            jacobian = np.array([[_value(x) for x in row] for row in self._kinematics.jacobian()])
+            if T is float:  # every sample of a run: no conversion element by element
+                self._kinematics.set_state(plant_state)
+                velocity = plant_state[self._num_positions :]
+                jacobian = np.asarray(self._kinematics.jacobian(), dtype=float)
+            else:  # the values of an AutoDiffXd diagram's sample
+                self._kinematics.set_state(np.array([T(_value(x)) for x in plant_state]))
+                velocity = np.array([_value(x) for x in plant_state[self._num_positions :]])
+                jacobian = np.array(
+                    [[_value(x) for x in row] for row in self._kinematics.jacobian()]
+                )
             speed = abs((jacobian @ velocity)[self._normal_axis])
             predicted_rate = stiffness * speed
             if self._noise_std > 0:
