@@ -248,7 +248,9 @@ def StiffnessEstimator_(T):
             force = _value(self.measured_force_input.Eval(context)[0])
             trusted = _value(self.sensor_fault_input.Eval(context)[0]) < 0.5
             plant_state = self.estimated_state_input.Eval(context)
-            self._kinematics.set_state(np.array([T(_value(x)) for x in plant_state]))
+            self._kinematics.set_state(
+                plant_state if T is float else np.array([T(_value(x)) for x in plant_state])
+            )
             position = _value(self._kinematics.pose()[self._normal_axis])
             anchor = (
                 (state[_ANCHOR_POSITION], state[_ANCHOR_FORCE], state[_ONSET])

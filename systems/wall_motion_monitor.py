@@ -173,7 +173,9 @@ def WallMotionMonitor_(T):
                 new = [math.nan, 0.0]
             else:
                 state = self.estimated_state_input.Eval(context)
-                self._kinematics.set_state(np.array([T(_value(x)) for x in state]))
+                self._kinematics.set_state(
+                    state if T is float else np.array([T(_value(x)) for x in state])
+                )
                 row = [_value(j) for j in self._kinematics.jacobian()[self._normal_axis]]
                 velocity = [_value(v) for v in state[self._num_positions :]]
                 tip_speed = float(np.dot(row, velocity))
