@@ -192,15 +192,15 @@ def check_reducible(scenario: SpatialScenario) -> None:
         )
 
 
-def normal_model(scenario: SpatialScenario, positions) -> tuple[NormalModel, dict]:
-    """The reduced model of `scenario` with the arm at joint positions `positions`.
+def normal_model(scenario: SpatialScenario, positions, *, plant=None) -> tuple[NormalModel, dict]:
+    """The reduced model of `scenario` with the arm at joint positions `positions` (on
+    `plant`, the scenario's own, when the caller has one built).
 
     Raises:
         ScenarioError: the controller or the sensor is one the model does not cover.
     """
     check_reducible(scenario)
-    loop = BuildSpatialLoop(scenario)
-    plant = loop.plant
+    plant = plant if plant is not None else BuildSpatialLoop(scenario).plant
     context = plant.CreateDefaultContext()
     plant.SetPositions(context, np.asarray(positions))
     masses = apparent_mass(plant, context)
@@ -307,7 +307,7 @@ def analyse_spatial_stability(
     settled = plant.GetPositions(plant.GetMyContextFromRoot(step_map.context))
     progress("the whole loop's step linearized through AutoDiffXd")
     whole = whole_loop_summary(scenario, step_map, confirm=confirm)
-    model, masses = normal_model(scenario, settled)
+    model, masses = normal_model(scenario, settled, plant=plant)
     A = normal_map(model)
     modes = modal_summary(A, period=model.period)
     certificate = lyapunov_certificate(A, discrete=True)
