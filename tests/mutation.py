@@ -4,7 +4,7 @@
     python tests/mutation.py --report all            # the scores of the sessions run so far
 
 The targets, the operators left out and the equivalent mutants (each with its reason) are in
-pyproject.toml under [tool.cosmic-ray]. cosmic-ray reads its own table ([cosmic-ray]), so
+tests/mutation.toml under [cosmic-ray]. cosmic-ray reads one target per config file, so
 this script writes one config file per target into .mutation/ (git-ignored), with the
 target's module and test command, and keeps the session database there: an interrupted run
 goes on where it stopped. cosmic-ray rewrites the module on disk for each mutant and puts it
@@ -32,8 +32,8 @@ WORKDIR = ROOT / ".mutation"
 
 
 def _settings() -> dict:
-    with open(ROOT / "pyproject.toml", "rb") as stream:
-        return tomllib.load(stream)["tool"]["cosmic-ray"]
+    with open(ROOT / "tests" / "mutation.toml", "rb") as stream:
+        return tomllib.load(stream)["cosmic-ray"]
 
 
 def _toml_value(value) -> str:

@@ -80,3 +80,23 @@ def test_bench_refuses_an_unreadable_before_file_with_one_line(tmp_path):
     lines = completed.stderr.strip().splitlines()
     assert len(lines) == 1 and "--before" in lines[0] and "before.json" in lines[0]
     assert "Traceback" not in completed.stderr and completed.stdout == ""
+
+
+def test_simulate_into_a_pipe_that_closes_after_one_line_exits_0_quietly(tmp_path):
+    # `admittance simulate | head -1`: the reader goes away after the first line, while the
+    # summary is still being printed (unbuffered, as PYTHONUNBUFFERED=1 makes it). That is
+    # not a failure of the run: exit status 0, no traceback, the results written.
+    out = tmp_path / "run"
+    command = [sys.executable, "-u", "-m", "admittance.diagrams.app.cli", "simulate"]
+    command += ["paper_moving_wall", "--set", "duration=0.3", "--quiet", "--out", str(out)]
+    with subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    ) as process:
+        first = process.stdout.readline()
+        process.stdout.close()  # as `head -1` does after its line
+        status = process.wait(timeout=120)
+        errors = process.stderr.read()
+    assert first.startswith("scenario paper_moving_wall")
+    assert status == 0, errors
+    assert "Traceback" not in errors and "Error" not in errors
+    assert (out / "metrics.json").is_file()

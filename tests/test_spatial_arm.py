@@ -98,6 +98,21 @@ def test_bad_frames_name_the_key(override, message):
 
 
 @needs_robots
+def test_an_unknown_frame_lists_every_link_of_the_arm_first():
+    # The Panda's URDF has links panda_link0 .. panda_link8 and panda_hand, and joint frames
+    # (panda_joint1_parent, ...) that Drake adds: a user who mistyped a frame means a link,
+    # so every link is listed, whole, before any other frame.
+    scenario = load_scenario("panda_surface_press", ["arm.flange_frame=panda_lnk8"])
+    with pytest.raises(ScenarioError) as error:
+        AddSpatialArm(DiagramBuilder(), scenario)
+    text = str(error.value)
+    links = [f"panda_link{i}" for i in range(9)] + ["panda_hand"]
+    assert all(link in text for link in links), text
+    first_joint_frame = text.find("panda_joint")
+    assert first_joint_frame == -1 or all(text.find(link) < first_joint_frame for link in links)
+
+
+@needs_robots
 def test_panda_plant_actuators_table_and_control_frame():
     scenario = load_scenario("panda_surface_press", ["surface.height_error=0.003"])
     plant, _, geometry = AddSpatialArm(DiagramBuilder(), scenario)

@@ -450,13 +450,17 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
     command_line[:] = ["admittance", *argv]  # recorded in the result folders' markers
     progress = Progress(args.command, quiet=args.quiet or args.quiet_all)
     try:
-        return args.handler(args, progress)
+        status = args.handler(args, progress)
+        sys.stdout.flush()  # a reader gone away shows here, inside the handling below
+        return status
     except (ScenarioError, OutputExistsError, OutputPathError, DiagramPictureError) as error:
         _error(str(error))
         return EXIT_INPUT_ERROR
     except WorkerDiedError as error:  # compare, grasp-compare (sweep says what it kept)
         _error(str(error))
         return EXIT_RUN_FAILED
+    except BrokenPipeError:  # the reader of stdout went away: main() ends quietly
+        raise
     except OSError as error:  # the system refused a write that was possible at the start
         where = f"{error.filename}: " if error.filename else ""
         _error(f"{where}{error.strerror or error}")
@@ -471,13 +475,16 @@ def main(argv: list[str] | None = None) -> int:
         return _run(args, sys.argv[1:] if argv is None else list(argv))
     except KeyboardInterrupt:
         return _interrupted()
+    except BrokenPipeError:  # the reader went away (e.g. `| head`): not an error of the run
+        # Python's own flush at exit would fail again on the closed pipe: point the
+        # descriptor at /dev/null (the recipe of Python's signal documentation).
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
     except Exception:
         if sigint_received():  # a Ctrl-C that an extension's call turned into its own error
             return _interrupted()
         raise
-    except BrokenPipeError:  # the reader went away (e.g. `| head`): not an error of the run
-        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 (so the exit flush stays quiet)
-        return 0
 
 
 if __name__ == "__main__":

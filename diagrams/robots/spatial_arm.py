@@ -84,6 +84,7 @@ __all__ = [
     "TOOL_TIP_FRAME",
     "TOOL_WELD",
     "AddSpatialArm",
+    "frame_names",
     "SolveSpatialInverseKinematics",
     "SpatialGeometry",
     "example_robot_data_packages",
@@ -217,11 +218,39 @@ def _without_collisions(file: Path) -> str:
     return _MESH_FILE.sub(absolute, text)
 
 
+# How many names an unknown-frame message lists of the links, and of the other frames.
+SHOWN_LINKS = 40
+SHOWN_OTHER_FRAMES = 10
+
+
+def _listed(names: list[str], most: int) -> str:
+    """`names` joined, whole names only: the first `most` and how many more."""
+    more = f" and {len(names) - most} more" if len(names) > most else ""
+    return ", ".join(names[:most]) + more
+
+
+def frame_names(plant: MultibodyPlant) -> tuple[list[str], list[str]]:
+    """The names a frame key may take: the links (body frames), then the other frames
+    (joint frames, frames the model adds), each sorted; the world and Drake's own
+    ``_``-prefixed frames left out."""
+    links, others = set(), set()
+    for i in range(plant.num_frames()):
+        frame = plant.get_frame(FrameIndex(i))
+        name = frame.name()
+        if not name or name.startswith("_") or name == "world":
+            continue
+        is_link = frame.index() == frame.body().body_frame().index()
+        (links if is_link else others).add(name)
+    return sorted(links), sorted(others - links)
+
+
 def _frame(plant: MultibodyPlant, name: str, key: str):
     if not plant.HasFrameNamed(name):
-        frames = sorted({plant.get_frame(FrameIndex(i)).name() for i in range(plant.num_frames())})
-        shown = ", ".join(f for f in frames if f and not f.startswith("_"))[:300]
-        raise ScenarioError(f"{key}: the model has no frame named {name!r}; frames: {shown}")
+        links, others = frame_names(plant)
+        listed = f"its links: {_listed(links, SHOWN_LINKS)}"
+        if others:
+            listed += f"; its other frames: {_listed(others, SHOWN_OTHER_FRAMES)}"
+        raise ScenarioError(f"{key}: the model has no frame named {name!r}; {listed}")
     return plant.GetFrameByName(name)
 
 
