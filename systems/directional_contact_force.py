@@ -5,7 +5,7 @@ contact results.
 normal. A force loop that presses along a planned direction (the spatial arm's tool on a
 table, whose real tilt differs from the plan) reads the force along that direction instead,
 friction included: what an ideal sensor aligned with the plan feels. A TemplateSystem, so
-that the loop converts to AutoDiffXd (diagrams/analysis/spatial_step_map.py).
+that the loop converts to AutoDiffXd (diagrams/robots/spatial_arm/step_map.py).
 """
 
 from __future__ import annotations

@@ -64,7 +64,7 @@ In contact a plan that advances into the wall does not move the command: dy/dt l
 max(dXd/dt, 0), so Xd + y advances only at the law's own rate, at most v_adv. Retracting is
 never limited, and the layer has no bound on how far Xr retracts (admittance.max_retract
 is the paper's law's travel, not the layer's): only the arm's reach stops it
-(diagrams/loop/safety_layer.py reports it). Within |E| <= E_cap and with the plan still or
+(the robot's safety layer reports it). Within |E| <= E_cap and with the plan still or
 receding (normal tracking) the law is exactly the paper's; beyond, it pushes less than the
 paper's would.
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from admittance.diagrams.robots.planar_arm import AddPlanarArm
+from admittance.diagrams.robots.planar_arm.plant import AddPlanarArm
 from admittance.urdf import PLANAR_ARM_URDF
 
 

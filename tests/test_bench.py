@@ -1,4 +1,5 @@
-"""The benchmark (diagrams/app/bench.py) on a short run: every field is there and sane.
+"""The planar arm's benchmark (its package's ``bench``) on a short run: every field is there
+and sane.
 
 No assertion on a wall time: only that times are positive and counts consistent.
 """
@@ -9,8 +10,11 @@ import json
 
 import pytest
 
-from admittance.diagrams.app.bench import run_benchmark
-from admittance.diagrams.app.bench_report import format_benchmark, load_benchmark_report
+from admittance.diagrams.robots.planar_arm.bench import run_benchmark
+from admittance.diagrams.robots.planar_arm.bench_report import (
+    format_benchmark,
+    load_benchmark_report,
+)
 from admittance.diagrams.scenario.files import load_scenario
 
 
@@ -220,7 +224,7 @@ def test_an_earlier_report_of_another_scenario_is_refused(report, tmp_path):
 def test_bench_json_may_replace_a_real_report_and_nothing_else(report, tmp_path):
     """`bench --json FILE` recognises its own report (so it replaces it), not other JSON."""
     from admittance.diagrams.app.bench_report import check_bench_file
-    from admittance.diagrams.app.result_folder import OutputExistsError
+    from admittance.diagrams.results.folder import OutputExistsError
 
     path = tmp_path / "bench.json"
     path.write_text(json.dumps(report))

@@ -10,7 +10,7 @@ import sys
 import pytest
 
 from admittance.diagrams.app.cli import main
-from admittance.diagrams.app.result_folder import MARKER, marker_entries
+from admittance.diagrams.results.folder import MARKER, marker_entries
 
 REQUIRED_COLUMNS = ["time", "x", "y", "theta", "xr", "force", "force_measured", "force_reference"]
 REQUIRED_METRICS = [

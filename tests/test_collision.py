@@ -23,9 +23,9 @@ import numpy as np
 import pytest
 from pydrake.autodiffutils import AutoDiffXd
 
-from admittance.diagrams.loop.safety_layer import STOP_SPEED
-from admittance.diagrams.robots.planar_arm import SolvePlanarInverseKinematics
-from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
+from admittance.diagrams.robots.planar_arm.run import run_scenario
+from admittance.diagrams.robots.planar_arm.safety_layer import STOP_SPEED
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.systems.fault_detector import (

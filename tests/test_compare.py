@@ -8,7 +8,7 @@ import csv
 import pytest
 
 from admittance.diagrams.app.cli import main
-from admittance.diagrams.app.result_folder import MARKER, marker_entries
+from admittance.diagrams.results.folder import MARKER, marker_entries
 
 
 def _table(path):
@@ -63,7 +63,7 @@ def test_compare_rejects_an_unknown_controller(tmp_path, capsys):
 
 
 def test_a_failed_run_is_a_row_with_its_reason():
-    from admittance.diagrams.app.compare import ControllerRun, format_table, table_row
+    from admittance.diagrams.robots.planar_arm.compare import ControllerRun, format_table, table_row
 
     failed = {"failed": True, "failure": "the integrator failed at t = 1.2 s: step too small"}
     ok = {"peak_force": 5.2, "final_mean_force": 5.01, "events": []}

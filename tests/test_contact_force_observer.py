@@ -13,9 +13,10 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
 
-from admittance.diagrams.loop.spatial_arm import BuildSpatialLoop
-from admittance.diagrams.robots.planar_arm import AddPlanarArm, SolvePlanarInverseKinematics
-from admittance.diagrams.robots.spatial_arm import (
+from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
+from admittance.diagrams.robots.planar_arm.plant import AddPlanarArm
+from admittance.diagrams.robots.spatial_arm.loop import BuildSpatialLoop
+from admittance.diagrams.robots.spatial_arm.plant import (
     CONTROL_FRAME,
     TOOL_TIP_FRAME,
     example_robot_data_packages,

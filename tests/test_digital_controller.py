@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import pytest
 
+from admittance.diagrams.robots.planar_arm.run import run_scenario
 from admittance.diagrams.run.engine import SimulationDivergedError
-from admittance.diagrams.run.planar_arm import run_scenario
 from admittance.diagrams.scenario.files import load_scenario
 
 # The stiffness step moved from 15 s to 2 s, to keep the run short.

@@ -8,8 +8,8 @@ import pytest
 
 import admittance.diagrams.run.engine as engine
 from admittance.diagrams.app.cli import main
+from admittance.diagrams.robots.planar_arm.run import run_scenario
 from admittance.diagrams.run.engine import SimulationDivergedError
-from admittance.diagrams.run.planar_arm import run_scenario
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.diagrams.scenario.schema import ScenarioError
 

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from admittance.diagrams.robots.planar_arm import SolvePlanarInverseKinematics
+from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
 from admittance.systems.fault_detector import (
     FAULT_FLAGS,
     SensorFaultDetector,

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from pydrake.autodiffutils import AutoDiffXd
 
-from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.robots.planar_arm.run import run_scenario
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.systems.optimal_admittance import OptimalAdmittance

@@ -17,8 +17,8 @@ from pydrake.systems.primitives import ConstantVectorSource, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
 from admittance.diagrams.loop.point import AddSensorChain
-from admittance.diagrams.robots.planar_arm import fingertip_point
-from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.robots.planar_arm.plant import fingertip_point
+from admittance.diagrams.robots.planar_arm.run import run_scenario
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.systems.flexiforce import FlexiForceSensor

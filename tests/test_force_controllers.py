@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from pydrake.autodiffutils import AutoDiffXd
 
-from admittance.diagrams.robots.planar_arm import baseline_gains
+from admittance.diagrams.robots.planar_arm.plant import baseline_gains
+from admittance.diagrams.robots.planar_arm.scenario import CONTROLLER_KINDS
 from admittance.diagrams.scenario.files import load_scenario
-from admittance.diagrams.scenario.planar_arm import CONTROLLER_KINDS
 from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.systems.adaptive_impedance import AdaptiveImpedance
 from admittance.systems.classical_admittance import ClassicalAdmittance
@@ -149,7 +149,7 @@ def test_controller_keys_are_validated(override, message):
 
 
 def test_every_controller_kind_builds_a_loop():
-    from admittance.diagrams.loop.planar_arm import BuildClosedLoop
+    from admittance.diagrams.robots.planar_arm.loop import BuildClosedLoop
 
     for kind in CONTROLLER_KINDS:
         loop = BuildClosedLoop(load_scenario("paper_moving_wall", [f"controller.kind={kind}"]))

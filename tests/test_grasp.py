@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 from admittance.diagrams.app.cli import main
-from admittance.diagrams.app.result_folder import marker_entries
-from admittance.diagrams.loop.planar_gripper import BuildGrasp, SetGraspInitialConditions
-from admittance.diagrams.robots.planar_gripper import BRICK_JOINTS
-from admittance.diagrams.run.planar_gripper import CRUSH_FACTOR, DROP_LIMIT, run_grasp
+from admittance.diagrams.results.folder import marker_entries
+from admittance.diagrams.robots.planar_gripper.loop import BuildGrasp, SetGraspInitialConditions
+from admittance.diagrams.robots.planar_gripper.plant import BRICK_JOINTS
+from admittance.diagrams.robots.planar_gripper.run import CRUSH_FACTOR, DROP_LIMIT, run_grasp
+from admittance.diagrams.robots.planar_gripper.scenario import FINGERS
 from admittance.diagrams.scenario.files import load_scenario
-from admittance.diagrams.scenario.planar_gripper import FINGERS
 
 # The grasp_hold plan: the side fingers close over 0.5 s, the forces ramp to Fr over the
 # next 0.5 s; 1.5 s of hold after that is enough to see the loop settle (it settles within
@@ -114,7 +114,7 @@ def test_replay_draws_the_hand_the_brick_and_the_forces_to_scale(held, tmp_path)
     """The brick's track is its logged pose; each finger's arrow is its force to scale."""
     from replay_data import replay_commands, replay_tracks
 
-    from admittance.diagrams.views import gripper_replay as grasp_replay
+    from admittance.diagrams.robots.planar_gripper import replay as grasp_replay
     from admittance.diagrams.views import replay as visualization
 
     path = grasp_replay.write_grasp_meshcat_replay(held, tmp_path / "grasp.html")
@@ -146,7 +146,7 @@ def test_metrics_report_the_brick_in_every_direction_and_each_slip_rate(held):
     back each direction's extremes (both signs of z), the final pose and each slope."""
     import dataclasses
 
-    from admittance.diagrams.run.planar_gripper import compute_grasp_metrics
+    from admittance.diagrams.robots.planar_gripper.run import compute_grasp_metrics
 
     time = held.time
     hold = held.metrics["hold_start"]
@@ -324,7 +324,7 @@ def test_grasp_compare_runs_its_points_on_the_application_runner(tmp_path, capsy
 def test_a_grasp_point_that_cannot_run_is_a_failed_row():
     """simulate_point's failure (here a scenario the worker cannot load) becomes a row
     marked failed, with the reason under the table; nothing raises."""
-    from admittance.diagrams.app.grasp_compare import format_grasp_table, grasp_point
+    from admittance.diagrams.robots.planar_gripper.compare import format_grasp_table, grasp_point
 
     overrides = {
         "controller.kind": "pid_only",
@@ -370,7 +370,7 @@ def test_grasp_disturbance_keeps_contact_and_recovers():
 @pytest.mark.slow
 def test_the_comparison_table():
     """docs/grasp.md's table: the full runs over +-2 mm and stiffness x0.1 to x10."""
-    from admittance.diagrams.app.grasp_compare import compare_grasps
+    from admittance.diagrams.robots.planar_gripper.compare import compare_grasps
 
     rows = compare_grasps("grasp_hold")
     assert len(rows) == 18

@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 
 from admittance.diagrams.app.cli import main
+from admittance.diagrams.robots.planar_arm.scenario import Scenario
+from admittance.diagrams.robots.planar_gripper.scenario import GraspScenario
 from admittance.diagrams.scenario.files import load_scenario
-from admittance.diagrams.scenario.planar_arm import Scenario
-from admittance.diagrams.scenario.planar_gripper import GraspScenario
 from admittance.diagrams.scenario.schema import ScenarioError
 
 

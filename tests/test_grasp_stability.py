@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 from pydrake.multibody.tree import JacobianWrtVariable
 
-from admittance.diagrams.analysis.planar_gripper import (
+from admittance.diagrams.analysis.linear import critical_gain, lyapunov_certificate, modal_summary
+from admittance.diagrams.robots.planar_gripper.analysis import (
     NEUTRAL_RESOLUTION,
     FindGraspEquilibrium,
     LinearizeGraspStep,
@@ -28,14 +29,12 @@ from admittance.diagrams.analysis.planar_gripper import (
     stepped_forces,
     without_near_neutral_modes,
 )
-from admittance.diagrams.analysis.stability import (
-    critical_gain,
-    lyapunov_certificate,
-    modal_summary,
+from admittance.diagrams.robots.planar_gripper.loop import BuildGrasp, SetGraspInitialConditions
+from admittance.diagrams.robots.planar_gripper.plant import contact_frame, tip_centre_frame
+from admittance.diagrams.robots.planar_gripper.stability_report import (
+    format_grasp_report,
+    write_grasp_report,
 )
-from admittance.diagrams.app.grasp_stability_report import format_grasp_report, write_grasp_report
-from admittance.diagrams.loop.planar_gripper import BuildGrasp, SetGraspInitialConditions
-from admittance.diagrams.robots.planar_gripper import contact_frame, tip_centre_frame
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.diagrams.scenario.schema import ScenarioError
 
@@ -357,7 +356,7 @@ def test_a_continuous_or_position_only_grasp_is_refused_in_one_line():
 @pytest.mark.slow
 def test_the_stability_command_on_a_grasp(tmp_path, capsys):
     from admittance.diagrams.app.cli import main
-    from admittance.diagrams.app.result_folder import MARKER, marker_entries
+    from admittance.diagrams.results.folder import MARKER, marker_entries
 
     out = tmp_path / "grasp_hold_stability"
     assert main(["stability", "grasp_hold", "--out", str(out), "--quick"]) == 0

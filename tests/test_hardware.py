@@ -11,8 +11,7 @@ from drake import lcmt_force_torque, lcmt_panda_command, lcmt_panda_status
 from pydrake.lcm import DrakeLcm
 
 from admittance.diagrams.app.cli import main
-from admittance.diagrams.hardware.config import load_hardware_config, spatial_scenario
-from admittance.diagrams.hardware.control_law import SpatialControlLaw
+from admittance.diagrams.hardware.config import load_hardware_config, scenario_of
 from admittance.diagrams.hardware.controller import AdmittanceController
 from admittance.diagrams.hardware.messages import (
     CHANNELS,
@@ -22,7 +21,8 @@ from admittance.diagrams.hardware.messages import (
     status_at_rest,
 )
 from admittance.diagrams.hardware.station import run_station, station_metrics
-from admittance.diagrams.robots.spatial_arm import example_robot_data_packages
+from admittance.diagrams.robots.spatial_arm.control_law import SpatialControlLaw
+from admittance.diagrams.robots.spatial_arm.plant import example_robot_data_packages
 
 # The station and the controller build the Panda of example-robot-data.
 pytestmark = pytest.mark.skipif(
@@ -41,7 +41,7 @@ STEP = GAMMA * STIFFNESS * PERIOD
 def _start() -> np.ndarray:
     """The arm's joints at t = 0 (the plan's start), as the station starts it."""
     config = load_hardware_config("panda_surface_press")
-    return SpatialControlLaw(spatial_scenario(config)).initial_positions
+    return SpatialControlLaw(scenario_of(config)).initial_positions
 
 
 START = None
@@ -138,7 +138,7 @@ def test_a_spatial_scenario_file_with_a_hardware_section_and_its_bad_keys(tmp_pa
         "hardware:\n  command_wait: 0\n"
     )
     config = load_hardware_config(path, ["rate=500", "station_timeout=0.3"])
-    scenario = spatial_scenario(config)
+    scenario = scenario_of(config)
     assert (config.command_wait, config.station_timeout, config.rate) == (0, 0.3, 500)
     assert scenario.surface.height_error == 0.002 and scenario.time_step == 0.002
     assert config.duration == 5 and config.name == "press"
@@ -217,7 +217,7 @@ def test_the_law_is_the_librarys_sampled_law_by_hand_and_bumpless():
     the first k - 1: the held offset lags one sample, as the library's sampled law), Fr(t)
     = 0 during the approach, so E = -F. A change of Gamma keeps Xr and integrates each
     later sample with the new Gamma."""
-    law = SpatialControlLaw(spatial_scenario(load_hardware_config("panda_surface_press")))
+    law = SpatialControlLaw(scenario_of(load_hardware_config("panda_surface_press")))
     q, v = law.initial_positions, np.zeros(7)
     for k in range(5):
         law.step(k * PERIOD, q, v, 4.0)
@@ -240,7 +240,7 @@ def test_the_law_is_the_librarys_sampled_law_by_hand_and_bumpless():
 def test_the_force_is_read_along_the_control_frame_into_the_table():
     """At the start the tool points along the control frame's z (into the table): a push of
     the table on the tool, along the sensor's -z, is a positive press force."""
-    law = SpatialControlLaw(spatial_scenario(load_hardware_config("panda_surface_press")))
+    law = SpatialControlLaw(scenario_of(load_hardware_config("panda_surface_press")))
     law.set_state(0.0, law.initial_positions, np.zeros(7))
     assert law.force_along_normal([0.0, 0.0, -7.0]) == pytest.approx(7.0, abs=1e-6)
     assert math.isnan(law.force_along_normal([math.nan, 0.0, 0.0]))
@@ -440,8 +440,8 @@ def test_station_and_control_give_the_force_of_simulate():
     agree within a few periods (measured 2 ms; allowed 5 ms: one period of delay, one of
     the band's sampling, three of margin). The impact's bounce is what the delay changes
     (its 220 rad/s resonance is 0.22 rad of phase per ms): peaks differ, not asserted."""
+    from admittance.diagrams.robots.spatial_arm.run import run_spatial
     from admittance.diagrams.run.metrics import final_window, settled_from, time_mean
-    from admittance.diagrams.run.spatial_arm import run_spatial
     from admittance.diagrams.scenario.files import load_scenario
 
     keys = ["duration=3", "trajectory.press_time=0.5"]

@@ -1,5 +1,5 @@
 """The hardware controller's gains against the sampled loop whose command comes late
-(diagrams/analysis/sampled_gains.py): the damper's limit by hand, the Panda press's
+(diagrams/robots/spatial_arm/sampled_gains.py): the damper's limit by hand, the Panda press's
 lowest rate by hand from its wrist, the start's refusal in one line, and the press on the
 station beyond the bound (docs/hardware.md)."""
 
@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from pydrake.lcm import DrakeLcm
 
-from admittance.diagrams.hardware.config import load_hardware_config, spatial_scenario
-from admittance.diagrams.hardware.control_law import SpatialControlLaw
+from admittance.diagrams.hardware.config import load_hardware_config, scenario_of
 from admittance.diagrams.hardware.controller import AdmittanceController
 from admittance.diagrams.hardware.station import run_station, station_metrics
-from admittance.diagrams.robots.spatial_arm import example_robot_data_packages
+from admittance.diagrams.robots.spatial_arm.control_law import SpatialControlLaw
+from admittance.diagrams.robots.spatial_arm.plant import example_robot_data_packages
 from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.systems.sampled_loop import delayed_damper_limit
 
@@ -42,7 +42,7 @@ def test_the_delayed_damper_limit_by_hand():
 
 def _law(rate: float) -> SpatialControlLaw:
     config = load_hardware_config("panda_surface_press", [f"rate={rate}"])
-    return SpatialControlLaw(spatial_scenario(config))
+    return SpatialControlLaw(scenario_of(config))
 
 
 def test_the_press_needs_the_rate_its_wrist_damping_asks_for():

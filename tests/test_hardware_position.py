@@ -1,4 +1,4 @@
-"""Position mode's inverse-kinematics step (diagrams/hardware/joint_command.py): it reaches a
+"""Position mode's inverse-kinematics step (the spatial arm's ``joint_command``): it reaches a
 commanded pose, keeps the joints inside their limits, and the tool stiffness of a joint
 stiffness by hand."""
 
@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from admittance.diagrams.hardware.config import load_hardware_config, spatial_scenario
-from admittance.diagrams.hardware.control_law import SpatialControlLaw
-from admittance.diagrams.hardware.joint_command import LIMIT_MARGIN, tool_stiffness
-from admittance.diagrams.robots.spatial_arm import example_robot_data_packages
+from admittance.diagrams.hardware.config import load_hardware_config, scenario_of
+from admittance.diagrams.robots.spatial_arm.control_law import SpatialControlLaw
+from admittance.diagrams.robots.spatial_arm.joint_command import LIMIT_MARGIN, tool_stiffness
+from admittance.diagrams.robots.spatial_arm.plant import example_robot_data_packages
 
 pytestmark = pytest.mark.skipif(
     example_robot_data_packages() is None,
@@ -21,7 +21,7 @@ pytestmark = pytest.mark.skipif(
 def _ik():
     config = load_hardware_config("panda_surface_press", ["mode=position"])
     law = SpatialControlLaw(
-        spatial_scenario(config),
+        scenario_of(config),
         joint_gains=lambda plant, q: {"joint_stiffness": [600.0] * 7, "joint_damping": [40.0] * 7},
     )
     law.ik.reset(law.initial_positions)

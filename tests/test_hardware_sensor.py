@@ -15,7 +15,7 @@ from admittance.diagrams.hardware.config import load_hardware_config
 from admittance.diagrams.hardware.controller import AdmittanceController
 from admittance.diagrams.hardware.messages import CHANNELS
 from admittance.diagrams.hardware.station import run_station, station_metrics
-from admittance.diagrams.robots.spatial_arm import example_robot_data_packages
+from admittance.diagrams.robots.spatial_arm.plant import example_robot_data_packages
 from admittance.diagrams.run.metrics import final_window, time_mean
 
 pytestmark = pytest.mark.skipif(

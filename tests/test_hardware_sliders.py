@@ -12,7 +12,7 @@ from admittance.diagrams.hardware.config import load_hardware_config
 from admittance.diagrams.hardware.controller import AdmittanceController
 from admittance.diagrams.hardware.sliders import ParameterSliders, station_meshcat
 from admittance.diagrams.hardware.station import run_station
-from admittance.diagrams.robots.spatial_arm import example_robot_data_packages
+from admittance.diagrams.robots.spatial_arm.plant import example_robot_data_packages
 
 pytestmark = pytest.mark.skipif(
     example_robot_data_packages() is None,

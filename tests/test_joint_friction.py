@@ -14,10 +14,11 @@ import pytest
 from pydrake.systems.framework import DiagramBuilder
 
 from admittance.diagrams.loop.layer_systems import TOLERANCE_SHARE
-from admittance.diagrams.robots.planar_arm import AddScenarioArm, SolvePlanarInverseKinematics
-from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
+from admittance.diagrams.robots.planar_arm.plant import AddScenarioArm
+from admittance.diagrams.robots.planar_arm.run import run_scenario
+from admittance.diagrams.robots.planar_arm.scenario import ArmConfig
 from admittance.diagrams.scenario.files import load_scenario
-from admittance.diagrams.scenario.planar_arm import ArmConfig
 from admittance.systems.contact_force_observer import ContactForceObserver
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
 

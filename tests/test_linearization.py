@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from admittance.diagrams.analysis.linearization import (
+from admittance.diagrams.robots.planar_arm.linearization import (
     FindContactEquilibrium,
     LinearizeAtEquilibrium,
 )

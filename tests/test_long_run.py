@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
-from admittance.diagrams.loop.planar_arm import BuildClosedLoop, SetInitialConditions
+from admittance.diagrams.robots.planar_arm.loop import BuildClosedLoop, SetInitialConditions
 from admittance.diagrams.scenario.files import load_scenario
 
 DURATION = 300.0

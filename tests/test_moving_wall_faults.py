@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import pytest
 
-from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.robots.planar_arm.run import run_scenario
 from admittance.diagrams.scenario.files import load_scenario
 
 FMAX = 10.0

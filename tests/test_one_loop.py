@@ -8,9 +8,13 @@ import math
 import numpy as np
 import pytest
 
-from admittance.diagrams.loop import BuildLoop
-from admittance.diagrams.robots import ForcePoint, finger_points, fingertip_point
-from admittance.diagrams.robots.spatial_arm import example_robot_data_packages, spatial_point
+from admittance.diagrams.loop.build import BuildLoop
+from admittance.diagrams.robots.description import ForcePoint
+from admittance.diagrams.robots.planar_arm.plant import fingertip_point
+from admittance.diagrams.robots.planar_gripper.plant import finger_points
+from admittance.diagrams.robots.planar_gripper.scenario import GraspScenario
+from admittance.diagrams.robots.spatial_arm.plant import example_robot_data_packages, spatial_point
+from admittance.diagrams.robots.spatial_arm.scenario import SpatialScenario
 from admittance.diagrams.run.metrics import (
     CONTACT_FRACTION,
     SETTLE_BAND,
@@ -23,12 +27,7 @@ from admittance.diagrams.run.metrics import (
     settling_time,
     time_mean,
 )
-from admittance.diagrams.scenario import (
-    GraspScenario,
-    SpatialScenario,
-    builtin_scenario_names,
-    load_scenario,
-)
+from admittance.diagrams.scenario.files import builtin_scenario_names, load_scenario
 
 # The systems that the shared steps of loop.point add at every point, whatever the robot.
 SHARED_ROLES = ("fingertip_kinematics", "cartesian_pid")

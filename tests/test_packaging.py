@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 from test_hardware_processes import needs_namespace, run_pair
 
-from admittance.diagrams.robots.spatial_arm import example_robot_data_packages
+from admittance.diagrams.robots.spatial_arm.plant import example_robot_data_packages
 
 REPOSITORY = Path(__file__).resolve().parents[1]
 

@@ -20,10 +20,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pydrake.systems.framework import DiagramBuilder
 
-from admittance.diagrams.robots.planar_arm import AddScenarioArm
-from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.robots.planar_arm.plant import AddScenarioArm
+from admittance.diagrams.robots.planar_arm.run import run_scenario
+from admittance.diagrams.robots.planar_arm.scenario import Scenario
 from admittance.diagrams.scenario.files import load_scenario
-from admittance.diagrams.scenario.planar_arm import Scenario
 from admittance.diagrams.scenario.schema import ScenarioError, scenario_keys
 from admittance.diagrams.scenario.sections import FAULT_KINDS, FAULT_KINDS_WITH_VALUE
 from admittance.urdf import PLANAR_ARM_URDF

@@ -10,7 +10,7 @@ import pytest
 
 from admittance.diagrams.app.bench_report import check_bench_file
 from admittance.diagrams.app.cli import main
-from admittance.diagrams.app.result_folder import (
+from admittance.diagrams.results.folder import (
     MARKER,
     REPLAY_MARK,
     OutputExistsError,
@@ -131,13 +131,13 @@ def test_a_file_put_into_the_folder_during_a_run_keeps_both(tmp_path, capsys, mo
 
     out = tmp_path / "run"
     assert main([*SIMULATE, "--out", str(out)]) == 0
-    run_scenario = simulation.run_scenario
+    simulate = simulation.simulate
 
     def run_while_the_user_writes(scenario, **options):
         (out / "notes.txt").write_text(NOTE)
-        return run_scenario(scenario, **options)
+        return simulate(scenario, **options)
 
-    monkeypatch.setattr(simulation, "run_scenario", run_while_the_user_writes)
+    monkeypatch.setattr(simulation, "simulate", run_while_the_user_writes)
     capsys.readouterr()
     assert main([*SIMULATE, "--out", str(out), "--force"]) == 2
     error = capsys.readouterr().err.strip()

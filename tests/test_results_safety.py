@@ -11,7 +11,7 @@ import time
 import pytest
 
 from admittance.diagrams.app.cli import main
-from admittance.diagrams.app.result_folder import (
+from admittance.diagrams.results.folder import (
     INCOMPLETE_MARK,
     OutputExistsError,
     atomic_output_dir,
@@ -65,7 +65,7 @@ def test_a_killed_writer_leaves_the_previous_result_and_a_marked_staging_folder(
     script = textwrap.dedent(
         f"""
         import os, signal
-        from admittance.diagrams.app.result_folder import atomic_output_dir
+        from admittance.diagrams.results.folder import atomic_output_dir
         with atomic_output_dir({str(out)!r}) as staging:
             (staging / "timeseries.csv").write_text("time,x\\n0,0.2\\n")
             os.kill(os.getpid(), signal.SIGKILL)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from pydrake.autodiffutils import AutoDiffXd, InitializeAutoDiff
 
-from admittance.diagrams.robots.planar_arm import SolvePlanarInverseKinematics
+from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
 from admittance.systems import contact_model as model
 from admittance.systems.contact_force_observer import ContactForceObserver
 from admittance.systems.fault_detector import SensorFaultDetector

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from admittance.diagrams.loop.layer_systems import STIFFER_FACTOR
-from admittance.diagrams.loop.safety_layer import stiffer_than_stated
-from admittance.diagrams.robots.planar_arm import SolvePlanarInverseKinematics
-from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
+from admittance.diagrams.robots.planar_arm.run import run_scenario
+from admittance.diagrams.run.safety_metrics import stiffer_than_stated
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.systems import contact_model as model
 from admittance.systems.safe_admittance import SafeAdmittance

@@ -22,9 +22,9 @@ import math
 import numpy as np
 import pytest
 
-from admittance.diagrams.analysis.stability import max_real_part
-from admittance.diagrams.loop.planar_arm import BuildClosedLoop
-from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.robots.planar_arm.loop import BuildClosedLoop
+from admittance.diagrams.robots.planar_arm.run import run_scenario
+from admittance.diagrams.robots.planar_arm.stability import max_real_part
 from admittance.diagrams.scenario.files import load_scenario
 
 FMAX = 10.0
@@ -223,7 +223,7 @@ def test_a_tip_beyond_the_reference_s_push_bound_cannot_start_with_the_layer():
     1 cm: the reference could not start at the tip (it would jump, and pull the arm): one
     line, before any run. The retract side has no bound with the layer: safe_contact's tip
     6 cm in front of Xd starts with max_retract 5 cm."""
-    from admittance.diagrams.loop.planar_arm import CheckScenarioStarts
+    from admittance.diagrams.robots.planar_arm.loop import CheckScenarioStarts
     from admittance.diagrams.scenario.schema import ScenarioError
 
     with pytest.raises(ScenarioError, match=r"^arm.initial_position, admittance.max_push"):

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from admittance.diagrams.analysis.stability import critical_gamma as full_critical_gamma
+from admittance.diagrams.robots.planar_arm.stability import critical_gamma as full_critical_gamma
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.systems import contact_model as model
 
@@ -145,7 +145,7 @@ def test_reduced_critical_gamma_is_below_the_full_linearization():
 def test_apparent_mass_of_the_arm_at_the_paper_s_pose(arm_plant):
     """The fingertip of the built-in arm at (0.2, -0.25, pi/2): 0.92 kg along x (the
     value the stability check above uses), from M(q) and J(q) of the plant."""
-    from admittance.diagrams.robots.planar_arm import SolvePlanarInverseKinematics
+    from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
     from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
     q = SolvePlanarInverseKinematics(
@@ -234,8 +234,9 @@ def test_the_payload_allowance_is_the_mass_of_a_payload_welded_at_the_fingertip(
     raises the bare arm's 0.92 kg (test above) to 2.18 kg."""
     from pydrake.systems.framework import DiagramBuilder
 
-    from admittance.diagrams.robots.planar_arm import AddPlanarArm, SolvePlanarInverseKinematics
-    from admittance.diagrams.scenario.planar_arm import URDF_DIR
+    from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
+    from admittance.diagrams.robots.planar_arm.plant import AddPlanarArm
+    from admittance.diagrams.robots.planar_arm.scenario import URDF_DIR
     from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
     def apparent(payload_in_plant: float, allowance: float) -> float:

@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 from pydrake.systems.framework import DiagramBuilder
 
-from admittance.diagrams.robots.planar_arm import AddScenarioArm
-from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.robots.planar_arm.plant import AddScenarioArm
+from admittance.diagrams.robots.planar_arm.run import run_scenario
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.systems import contact_model as model
 from admittance.systems.planar_kinematics import PlanarFrameKinematics
@@ -171,8 +171,8 @@ def test_the_reach_metric_names_the_first_sample_the_arm_could_not_follow(arm_pl
     0.6 m at y = -0.25 m is beyond it) stops the layer, and the first such time is named."""
     from types import SimpleNamespace
 
-    from admittance.diagrams.loop.safety_layer import reach_limit
-    from admittance.diagrams.robots.planar_arm import SolvePlanarInverseKinematics
+    from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
+    from admittance.diagrams.robots.planar_arm.safety_layer import reach_limit
 
     pose = [0.19, -0.25, np.pi / 2]
     q = SolvePlanarInverseKinematics(arm_plant, "fingertip", pose, [-0.45, 1.66, 0.36])

@@ -166,7 +166,7 @@ def test_latency_lowers_the_critical_gamma_at_1_khz():
 
 
 def _sampled_law(plant, latency: float):
-    from admittance.diagrams.robots.planar_arm import SolvePlanarInverseKinematics
+    from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
     from admittance.systems.safe_admittance import SafeAdmittance
 
     law = SafeAdmittance(
@@ -225,7 +225,7 @@ def test_the_report_s_margins_at_the_1_khz_settings():
     loop's; the scheduled Gamma keeps the margin of 3 (here the scenario's 1e-5, since
     Gamma* / 3 is above it); the loop is stable there and tolerates more than the 0.5 ms
     it has; on the stiffest walls the schedule lowers Gamma to Gamma* / 3."""
-    from admittance.diagrams.analysis.safety_margins import sampled_margins
+    from admittance.diagrams.robots.planar_arm.safety_margins import sampled_margins
     from admittance.diagrams.scenario.files import load_scenario
 
     margins = sampled_margins(load_scenario("safe_contact_1khz", ["sensor.latency=0.0005"]))
@@ -246,7 +246,7 @@ FR, FMAX = 5.0, 10.0
 
 def _stiff_wall_run(latency: float, duration: float = 1.5):
     """safe_contact_1khz on a still 1e6 N/m wall (Ke_max), the tip 2 mm before it."""
-    from admittance.diagrams.run.planar_arm import run_scenario
+    from admittance.diagrams.robots.planar_arm.run import run_scenario
     from admittance.diagrams.scenario.files import load_scenario
 
     return run_scenario(
@@ -289,7 +289,7 @@ def test_safe_contact_at_1_khz_with_latency(latency):
     approach, the contact on the 1e5 N/m wall and its 5 mm/s retreat): the first contact
     under Fmax, no contact loss, the steady state within 2 % of Fr (docs/safety.md,
     section 8)."""
-    from admittance.diagrams.run.planar_arm import run_scenario
+    from admittance.diagrams.robots.planar_arm.run import run_scenario
     from admittance.diagrams.scenario.files import load_scenario
 
     metrics = run_scenario(
@@ -309,7 +309,7 @@ def test_the_sampled_damper_gain_of_a_sliding_mass_by_hand():
     from pydrake.multibody.plant import MultibodyPlant
     from pydrake.multibody.tree import PrismaticJoint, SpatialInertia, UnitInertia
 
-    from admittance.diagrams.loop.safety_layer import sampled_damper_gain
+    from admittance.diagrams.robots.planar_arm.safety_layer import sampled_damper_gain
 
     plant = MultibodyPlant(0.0)
     body = plant.AddRigidBody(

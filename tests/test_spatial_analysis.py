@@ -11,24 +11,24 @@ import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
 
-from admittance.diagrams.analysis import spatial_arm as spatial_analysis
-from admittance.diagrams.analysis.spatial_arm import (
+from admittance.diagrams.analysis.linear import lyapunov_certificate
+from admittance.diagrams.app.cli import main
+from admittance.diagrams.robots.spatial_arm import analysis as spatial_analysis
+from admittance.diagrams.robots.spatial_arm.analysis import (
     NormalModel,
     analyse_spatial_stability,
     apparent_mass,
     normal_map,
     spatial_critical_gamma,
 )
-from admittance.diagrams.analysis.spatial_step_map import (
+from admittance.diagrams.robots.spatial_arm.bench import run_spatial_benchmark
+from admittance.diagrams.robots.spatial_arm.loop import BuildSpatialLoop
+from admittance.diagrams.robots.spatial_arm.plant import example_robot_data_packages
+from admittance.diagrams.robots.spatial_arm.step_map import (
     confirm_loop_critical_gamma,
     loop_critical_gamma,
     loop_step_map,
 )
-from admittance.diagrams.analysis.stability import lyapunov_certificate
-from admittance.diagrams.app.cli import main
-from admittance.diagrams.app.spatial_bench import run_spatial_benchmark
-from admittance.diagrams.loop.spatial_arm import BuildSpatialLoop
-from admittance.diagrams.robots.spatial_arm import example_robot_data_packages
 from admittance.diagrams.scenario.files import load_scenario
 
 needs_robots = pytest.mark.skipif(

@@ -1,4 +1,4 @@
-"""The safety layer on the spatial arm (diagrams/loop/spatial_safety.py): a Panda whose plan
+"""The safety layer on the spatial arm (its package's ``safety_layer``): a Panda whose plan
 drives the tool fast into a table 1 cm higher than planned. Without the layer the first
 contact peaks far above Fmax; with it the tool reaches the table under the approach bound
 v_max, derived here apart from the code from the arm's task-space inertia along the
@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 from pydrake.multibody.tree import JacobianWrtVariable
 
-from admittance.diagrams.loop.spatial_arm import BuildSpatialLoop
-from admittance.diagrams.robots.spatial_arm import (
+from admittance.diagrams.robots.spatial_arm.loop import BuildSpatialLoop
+from admittance.diagrams.robots.spatial_arm.plant import (
     CONTROL_FRAME,
     TOOL_TIP_FRAME,
     example_robot_data_packages,
 )
-from admittance.diagrams.run.spatial_arm import run_spatial
+from admittance.diagrams.robots.spatial_arm.run import run_spatial
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.diagrams.scenario.schema import ScenarioError
 

@@ -12,26 +12,25 @@ import numpy as np
 import pytest
 from pydrake.autodiffutils import AutoDiffXd
 
-from admittance.diagrams.analysis.linearization import (
+from admittance.diagrams.analysis.eq13 import symbolic_eq13
+from admittance.diagrams.analysis.linear import lyapunov_certificate, modal_summary
+from admittance.diagrams.app.cli import main
+from admittance.diagrams.results.folder import MARKER, marker_entries
+from admittance.diagrams.robots.planar_arm.linearization import (
     FindContactEquilibrium,
     LinearizeAtEquilibrium,
 )
-from admittance.diagrams.analysis.stability import (
+from admittance.diagrams.robots.planar_arm.run import run_scenario
+from admittance.diagrams.robots.planar_arm.stability import (
     critical_gamma,
     linear_versus_nonlinear,
     lyapunov_along_trajectory,
-    lyapunov_certificate,
     max_real_part,
-    modal_summary,
     sampled_spectral_radius,
     simulate_near_critical,
     stability_map,
-    symbolic_eq13,
     with_values,
 )
-from admittance.diagrams.app.cli import main
-from admittance.diagrams.app.result_folder import MARKER, marker_entries
-from admittance.diagrams.run.planar_arm import run_scenario
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.systems.optimal_admittance import OptimalAdmittance
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from admittance.diagrams.robots.planar_arm import SolvePlanarInverseKinematics
+from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
 from admittance.systems.stiffness_estimator import (
     GAIN_DOWN,
     LOADING_TIME,

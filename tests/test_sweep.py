@@ -17,7 +17,6 @@ import time
 import pytest
 
 from admittance.diagrams.app.cli import main
-from admittance.diagrams.app.result_folder import MARKER, marker_entries
 from admittance.diagrams.app.sweep import (
     GRID_FORMS,
     RANDOM_FORMS,
@@ -30,6 +29,7 @@ from admittance.diagrams.app.sweep import (
     summarize,
     table_text,
 )
+from admittance.diagrams.results.folder import MARKER, marker_entries
 
 FORCE_REFERENCE = 5.0  # paper_moving_wall's Fr, N
 SHORT = ["paper_moving_wall", "--set", "duration=1.5"]

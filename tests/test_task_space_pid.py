@@ -7,13 +7,13 @@ import pytest
 from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.framework import DiagramBuilder
 
-from admittance.diagrams.robots.planar_gripper import (
+from admittance.diagrams.robots.planar_gripper.plant import (
     FINGER_COORDINATES,
     AddHand,
     contact_frame,
     tip_centre_frame,
 )
-from admittance.diagrams.scenario.planar_gripper import GraspScenario
+from admittance.diagrams.robots.planar_gripper.scenario import GraspScenario
 from admittance.systems.cartesian_pid import CartesianPid
 from admittance.systems.planar_kinematics import PlanarKinematics
 

@@ -18,17 +18,18 @@ from pydrake.math import RotationMatrix
 from pydrake.systems.framework import DiagramBuilder
 from replay_data import replay_commands, replay_tracks
 
+import admittance.diagrams.robots.planar_arm.replay as arm_replay
+import admittance.diagrams.robots.spatial_arm.replay as spatial_replay_module
 import admittance.diagrams.views.picture as picture
 import admittance.diagrams.views.replay as visualization
-import admittance.diagrams.views.spatial_replay as spatial_replay_module
 from admittance.diagrams.app.cli import main
-from admittance.diagrams.loop.planar_arm import BuildClosedLoop
-from admittance.diagrams.robots.planar_arm import AddScenarioArm
-from admittance.diagrams.robots.spatial_arm import example_robot_data_packages
-from admittance.diagrams.run.planar_arm import run_scenario
+from admittance.diagrams.robots.planar_arm.loop import BuildClosedLoop
+from admittance.diagrams.robots.planar_arm.plant import AddScenarioArm
+from admittance.diagrams.robots.planar_arm.replay import write_meshcat_replay
+from admittance.diagrams.robots.planar_arm.run import run_scenario
+from admittance.diagrams.robots.spatial_arm.plant import example_robot_data_packages
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.diagrams.views.picture import DiagramPictureError, write_diagram_picture
-from admittance.diagrams.views.replay import write_meshcat_replay
 
 # The paper's Fig. 1 blocks, as named by BuildClosedLoop, and some of their ports.
 FIG1_BLOCKS = [
@@ -108,8 +109,8 @@ def test_replay_draws_the_wall_at_its_position_and_the_force_to_scale(replay, mo
     times = visualization.frame_times(result.time)
 
     # The wall slab's face is at Xe(t), and it moves (1.5 mm between 0.1 s and 0.4 s).
-    wall = tracks[(visualization.WALL_PATH, "position")]
-    face = np.array([k["value"][0] for k in wall]) - 0.5 * visualization.WALL_THICKNESS
+    wall = tracks[(arm_replay.WALL_PATH, "position")]
+    face = np.array([k["value"][0] for k in wall]) - 0.5 * arm_replay.WALL_THICKNESS
     np.testing.assert_allclose(face, np.interp(times, result.time, result.wall_position))
     assert face[-1] - face[0] == pytest.approx(0.005 * 0.3)
 
@@ -157,7 +158,7 @@ def test_replay_view_is_the_x_y_plane_with_x_right_and_y_up(replay, moving_wall_
     bottom, top = X_WC[1, 3] + camera["bottom"], X_WC[1, 3] + camera["top"]
     x, y = moving_wall_result.pose[:, 0], moving_wall_result.pose[:, 1]
     assert left < 0.0 < right and bottom < 0.0 < top
-    assert left < x.min() and x.max() + visualization.WALL_THICKNESS < right
+    assert left < x.min() and x.max() + arm_replay.WALL_THICKNESS < right
     assert bottom < y.min() and y.max() < top
 
 

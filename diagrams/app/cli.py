@@ -29,7 +29,6 @@ import os
 import sys
 from pathlib import Path
 
-from admittance.diagrams.app.interrupts import record_sigint, sigint_held_back, sigint_received
 from admittance.diagrams.app.parser import (
     EXIT_INPUT_ERROR,
     EXIT_INTERRUPTED,
@@ -37,6 +36,7 @@ from admittance.diagrams.app.parser import (
     MAX_REPEAT,
     build_parser,
 )
+from admittance.diagrams.results.interrupts import record_sigint, sigint_held_back, sigint_received
 
 # The extension modules of Drake that the project imports (tests/test_layout.py checks the
 # list against the code). They load with Ctrl-C held back: their C++ initialization would
@@ -70,62 +70,50 @@ def _error(message: str) -> None:
     print(f"admittance: error: {message}", file=sys.stderr)
 
 
-def _arm_scenario(args: argparse.Namespace):
-    """The arm scenario of `args`; a grasp or spatial scenario is refused with one line."""
+def _refusal(source, robot, command: str) -> str:
+    """The one line for a scenario whose robot does not take `command`: which robots'
+    scenarios the command runs, and which commands this robot's take."""
+    from admittance.diagrams.robots.kinds import every_robot
+
+    takers = [other.noun for other in every_robot() if other.supports(command)]
+    article = "an" if robot.noun[0] in "aeiou" else "a"
+    return (
+        f"scenario: '{source}' is {article} {robot.noun} scenario (kind: {robot.kind}); "
+        f"`admittance {command}` runs {' and '.join(takers) or 'no'} scenarios only "
+        f"({robot.plural}: {', '.join(robot.commands)})"
+    )
+
+
+def _scenario(args: argparse.Namespace):
+    """The scenario of `args` and its robot's record; a robot whose record does not take
+    the command is refused with one line."""
+    from admittance.diagrams.robots.kinds import robot_of
     from admittance.diagrams.scenario.files import load_scenario
-    from admittance.diagrams.scenario.planar_gripper import GraspScenario
     from admittance.diagrams.scenario.schema import ScenarioError
 
     scenario = load_scenario(args.scenario, args.overrides)
-    _refuse_spatial(scenario, args)
-    if isinstance(scenario, GraspScenario):
-        raise ScenarioError(
-            f"scenario: '{args.scenario}' is a grasp scenario (kind: grasp); `admittance "
-            f"{args.command}` runs arm scenarios only (grasps: simulate, diagram, stability, "
-            "grasp-compare)"
-        )
-    return scenario
-
-
-def _spatial_scenario(args: argparse.Namespace):
-    """The spatial-arm scenario of `args`, or None for any other kind."""
-    from admittance.diagrams.scenario.files import load_scenario
-    from admittance.diagrams.scenario.spatial_arm import SpatialScenario
-
-    scenario = load_scenario(args.scenario, args.overrides)
-    return scenario if isinstance(scenario, SpatialScenario) else None
-
-
-def _refuse_spatial(scenario, args: argparse.Namespace) -> None:
-    """One line for a spatial-arm scenario given to a command that does not run one."""
-    from admittance.diagrams.scenario.schema import ScenarioError
-    from admittance.diagrams.scenario.spatial_arm import SpatialScenario
-
-    if isinstance(scenario, SpatialScenario):
-        raise ScenarioError(
-            f"scenario: '{args.scenario}' is a spatial-arm scenario (kind: spatial); "
-            f"`admittance {args.command}` does not run one yet (spatial arms: simulate, "
-            "bench, stability)"
-        )
+    robot = robot_of(scenario)
+    if not robot.supports(args.command):
+        raise ScenarioError(_refusal(args.scenario, robot, args.command))
+    return scenario, robot
 
 
 # --- the subcommands ----------------------------------------------------------------------
 
 
 def _cmd_simulate(args: argparse.Namespace, progress) -> int:
-    from admittance.diagrams.app.result_folder import (
+    from admittance.diagrams.app.simulate import summary, write_results
+    from admittance.diagrams.results.folder import (
         check_output_dir,
         check_replay_file,
         check_writable,
         write_marked_replay,
     )
-    from admittance.diagrams.app.simulate import summary, write_results
     from admittance.diagrams.run.engine import SimulationDivergedError
     from admittance.diagrams.run.simulation import simulate
-    from admittance.diagrams.scenario.files import load_scenario
     from admittance.diagrams.views.figures import write_replay
 
-    scenario = load_scenario(args.scenario, args.overrides)
+    scenario, _ = _scenario(args)
     out = Path(args.out) if args.out else Path("results") / scenario.name
     check_output_dir(out, overwrite=args.force)
     if args.meshcat_html:
@@ -151,32 +139,43 @@ def _cmd_simulate(args: argparse.Namespace, progress) -> int:
 
 
 def _cmd_diagram(args: argparse.Namespace, progress) -> int:
-    from admittance.diagrams.app.result_folder import check_writable
-    from admittance.diagrams.loop.build import BuildLoop
-    from admittance.diagrams.scenario.files import load_scenario
+    from admittance.diagrams.results.folder import check_writable
     from admittance.diagrams.scenario.schema import ScenarioError
     from admittance.diagrams.views.picture import write_diagram_picture
 
-    scenario = load_scenario(args.scenario, args.overrides)
+    scenario, robot = _scenario(args)
     suffix = Path(args.out).suffix.lower()
     if suffix not in (".svg", ".png", ".dot"):
         raise ScenarioError(f"--out {args.out}: unsupported picture format; use .svg, .png or .dot")
     check_writable(args.out)
-    print(f"wrote {write_diagram_picture(BuildLoop(scenario).diagram, args.out)}")
+    print(f"wrote {write_diagram_picture(robot.build(scenario).diagram, args.out)}")
     return 0
+
+
+def _before_report(args: argparse.Namespace, scenario, robot) -> dict | None:
+    """The earlier report of --before, or None; one line where the robot cannot compare."""
+    from admittance.diagrams.robots.kinds import every_robot
+    from admittance.diagrams.scenario.schema import ScenarioError
+
+    if not args.before:
+        return None
+    if robot.bench.load_before is None:
+        comparable = [r.noun for r in every_robot() if r.bench and r.bench.load_before]
+        raise ScenarioError(
+            f"--before {args.before}: compares {' and '.join(comparable)} benchmarks only "
+            f"(a {robot.noun} report has other keys)"
+        )
+    try:
+        return robot.bench.load_before(args.before, scenario)
+    except ValueError as error:
+        raise ScenarioError(str(error)) from None
 
 
 def _cmd_bench(args: argparse.Namespace, progress) -> int:
     import json
 
-    from admittance.diagrams.app.bench import run_benchmark
-    from admittance.diagrams.app.bench_report import (
-        check_bench_file,
-        format_benchmark,
-        load_benchmark_report,
-    )
-    from admittance.diagrams.app.result_folder import atomic_write_text, check_writable
-    from admittance.diagrams.loop.planar_arm import CheckScenarioStarts
+    from admittance.diagrams.app.bench_report import check_bench_file
+    from admittance.diagrams.results.folder import atomic_write_text, check_writable
     from admittance.diagrams.scenario.schema import ScenarioError
 
     if not 1 <= args.repeat <= MAX_REPEAT:
@@ -184,77 +183,20 @@ def _cmd_bench(args: argparse.Namespace, progress) -> int:
             f"--repeat {args.repeat}: must be an integer in [1, {MAX_REPEAT}] (each is a "
             "whole simulation)"
         )
-    spatial = _spatial_scenario(args)
-    if spatial is not None:
-        from admittance.diagrams.app.spatial_bench import spatial_bench_command
-
-        return spatial_bench_command(spatial, args, progress)
-    scenario = _arm_scenario(args)
-    before = None
-    if args.before:
-        try:
-            before = load_benchmark_report(args.before, scenario)
-        except ValueError as error:
-            raise ScenarioError(str(error)) from None
+    scenario, robot = _scenario(args)
+    before = _before_report(args, scenario, robot)
     if args.json:
         check_writable(args.json, "--json")
         check_bench_file(args.json)
-    CheckScenarioStarts(scenario)
-    report = run_benchmark(scenario, repeat=args.repeat, progress=progress)
-    print(format_benchmark(report, before))
+    robot.check_start(scenario)
+    report = robot.bench.run(scenario, repeat=args.repeat, progress=progress)
+    print(robot.bench.format(report, before))
     if args.json:
         path = Path(args.json)
         path.parent.mkdir(parents=True, exist_ok=True)
         check_bench_file(path)  # again: it may have changed during the runs
         atomic_write_text(path, json.dumps(report, indent=2) + "\n")
         print(f"wrote {path}")
-    return 0
-
-
-def _controller_kinds(text: str | None) -> list[str]:
-    """The --controllers list, checked: known kinds, each once."""
-    from admittance.diagrams.scenario.planar_arm import CONTROLLER_KINDS
-    from admittance.diagrams.scenario.schema import ScenarioError
-
-    if text is None:
-        return list(CONTROLLER_KINDS)
-    kinds = [kind.strip() for kind in text.split(",")]
-    for index, kind in enumerate(kinds):
-        if kind not in CONTROLLER_KINDS:
-            raise ScenarioError(
-                f"--controllers: {kind!r} is not a controller; allowed: "
-                + ", ".join(CONTROLLER_KINDS)
-            )
-        if kind in kinds[:index]:
-            raise ScenarioError(f"--controllers: {kind!r} is listed twice")
-    return kinds
-
-
-def _cmd_compare(args: argparse.Namespace, progress) -> int:
-    from admittance.diagrams.app.compare import (
-        compare_controllers,
-        format_table,
-        write_comparison,
-    )
-    from admittance.diagrams.app.formatting import number
-    from admittance.diagrams.app.result_folder import check_output_dir
-    from admittance.diagrams.robots.planar_arm import baseline_gains
-
-    kinds = _controller_kinds(args.controllers)
-    scenario = _arm_scenario(args)
-    out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_compare"
-    check_output_dir(out, overwrite=args.force)
-    scenario, runs = compare_controllers(
-        args.scenario, args.overrides, kinds, workers=args.workers, progress=progress
-    )
-    gains = ", ".join(f"{k} {number(v)}" for k, v in baseline_gains(scenario).items())
-    print(
-        f"{scenario.name}: Fr = {number(scenario.force_reference, ' N')}; baseline gains ({gains})"
-    )
-    print(format_table(runs), end="")
-    progress(f"writing {out}/")
-    folder = write_comparison(scenario, runs, out, overwrite=args.force)
-    print(folder.describe(out))
     return 0
 
 
@@ -267,81 +209,57 @@ def _number_list(flag: str, text: str) -> list[float]:
         raise ScenarioError(f"{flag} {text!r}: expected a comma list of numbers") from None
 
 
-def _cmd_grasp_compare(args: argparse.Namespace, progress) -> int:
-    from admittance.diagrams.app.grasp_compare import compare_grasps, format_grasp_table
-    from admittance.diagrams.app.result_folder import check_output_dir, result_folder
-    from admittance.diagrams.scenario.files import load_scenario
-    from admittance.diagrams.scenario.planar_gripper import GRASP_CONTROLLER_KINDS, GraspScenario
-    from admittance.diagrams.scenario.schema import ScenarioError
+def _compare_options(args: argparse.Namespace) -> dict:
+    """The options of `args` that its comparison command takes besides the common ones."""
+    options = {"controllers": args.controllers}
+    if args.command == "grasp-compare":
+        options["size_errors"] = _number_list("--size-errors", args.size_errors)
+        options["stiffness_errors"] = _number_list("--stiffness-errors", args.stiffness_errors)
+    return options
 
-    scenario = load_scenario(args.scenario, args.overrides)
-    if not isinstance(scenario, GraspScenario):
-        raise ScenarioError(f"scenario: '{args.scenario}' is not a grasp scenario (kind: grasp)")
+
+def _cmd_compare(args: argparse.Namespace, progress) -> int:
+    """`compare` and `grasp-compare`: the robot's comparison, written to its folder."""
+    from admittance.diagrams.results.folder import check_output_dir
+
+    scenario, robot = _scenario(args)
+    options = _compare_options(args)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_compare"
     check_output_dir(out, overwrite=args.force)
-    controllers = (
-        [k.strip() for k in args.controllers.split(",")]
-        if args.controllers
-        else list(GRASP_CONTROLLER_KINDS)
-    )
-    rows = compare_grasps(
+    text, folder = robot.compare(
         args.scenario,
         args.overrides,
-        size_errors=_number_list("--size-errors", args.size_errors),
-        stiffness_errors=_number_list("--stiffness-errors", args.stiffness_errors),
-        controllers=controllers,
+        out,
+        **options,
         workers=args.workers,
+        overwrite=args.force,
         progress=progress,
     )
-    table = format_grasp_table(rows)
-    print(table, end="")
-    progress(f"writing {out}/")
-    with result_folder(out, overwrite=args.force) as folder:
-        folder.write_text("table.md", table)
-        folder.write_json("rows.json", rows)
+    print(text, end="")
     print(folder.describe(out))
     return 0
 
 
 def _cmd_stability(args: argparse.Namespace, progress) -> int:
-    from admittance.diagrams.app.result_folder import check_output_dir
-    from admittance.diagrams.app.stability_report import (
-        MapAxes,
-        analyse,
-        format_report,
-        write_report,
-    )
-    from admittance.diagrams.loop.planar_arm import CheckScenarioStarts
-    from admittance.diagrams.scenario.files import load_scenario
-    from admittance.diagrams.scenario.planar_gripper import GraspScenario
-    from admittance.diagrams.scenario.spatial_arm import SpatialScenario
+    from admittance.diagrams.results.folder import check_output_dir
+    from admittance.diagrams.robots.record import StabilityOptions
 
-    scenario = load_scenario(args.scenario, args.overrides)
+    scenario, robot = _scenario(args)
     out = Path(args.out) if args.out else Path("results") / f"{scenario.name}_stability"
     check_output_dir(out, overwrite=args.force)
-    if isinstance(scenario, SpatialScenario):
-        from admittance.diagrams.app.spatial_stability_report import spatial_stability_command
-
-        return spatial_stability_command(scenario, out, args, progress)
-    if isinstance(scenario, GraspScenario):
-        from admittance.diagrams.app.grasp_stability_report import grasp_stability_command
-
-        return grasp_stability_command(scenario, out, args, progress)
-    axes = MapAxes.quick() if args.quick else MapAxes()
-    CheckScenarioStarts(scenario)
-    report = analyse(scenario, axes=axes, with_trajectory=not args.no_trajectory, progress=progress)
-    progress(f"writing {out}/")
-    folder = write_report(report, out, overwrite=args.force)
-    print(format_report(report.summary), end="")
+    robot.check_start(scenario)
+    options = StabilityOptions(quick=args.quick, trajectory=not args.no_trajectory)
+    text, folder = robot.stability(scenario, out, options, args.force, progress)
+    print(text, end="")
     print(folder.describe(out))
     return 0
 
 
 def _cmd_sweep(args: argparse.Namespace, progress) -> int:
-    from admittance.diagrams.app.formatting import seconds
     from admittance.diagrams.app.sweep import WorkerDiedError, define_sweep, run_sweep
+    from admittance.diagrams.views.formatting import seconds
 
-    _arm_scenario(args)
+    _scenario(args)
     definition = define_sweep(
         args.scenario,
         args.overrides,
@@ -401,7 +319,7 @@ HANDLERS = {
     "diagram": _cmd_diagram,
     "stability": _cmd_stability,
     "compare": _cmd_compare,
-    "grasp-compare": _cmd_grasp_compare,
+    "grasp-compare": _cmd_compare,
     "bench": _cmd_bench,
     "sweep": _cmd_sweep,
     "station": _cmd_station,
@@ -412,7 +330,7 @@ HANDLERS = {
 def _interrupted() -> int:
     """The one line of a Ctrl-C: which result folders were completed before it, if any."""
     completed = []
-    module = sys.modules.get("admittance.diagrams.app.result_folder")
+    module = sys.modules.get("admittance.diagrams.results.folder")
     if module is not None:
         completed = [f"{folder}/" for folder in module.completed_folders]
     if completed:
@@ -436,13 +354,13 @@ def _load_libraries() -> None:
 def _run(args: argparse.Namespace, argv: list[str]) -> int:
     _load_libraries()
     from admittance.diagrams.app.progress import Progress
-    from admittance.diagrams.app.result_folder import (
+    from admittance.diagrams.results.folder import (
         OutputExistsError,
         OutputPathError,
         command_line,
         completed_folders,
     )
-    from admittance.diagrams.app.sweep.runner import WorkerDiedError
+    from admittance.diagrams.run.parallel import WorkerDiedError
     from admittance.diagrams.scenario.schema import ScenarioError
     from admittance.diagrams.views.picture import DiagramPictureError
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from admittance.diagrams.app.result_folder import check_output_dir, result_folder
+from admittance.diagrams.results.folder import check_output_dir, result_folder
 from admittance.diagrams.scenario.schema import ScenarioError
 
 __all__ = ["control_command", "station_command", "stop_on_signals"]
@@ -104,11 +104,11 @@ def station_command(args, progress) -> int:
 
 def _sliders(config, lcm, progress):
     """The station's Meshcat (localhost) with the law's sliders."""
-    from admittance.diagrams.hardware.config import spatial_scenario
+    from admittance.diagrams.hardware.config import scenario_of
     from admittance.diagrams.hardware.sliders import ParameterSliders, station_meshcat
 
     meshcat = station_meshcat()
-    law = spatial_scenario(config).admittance
+    law = scenario_of(config).admittance
     sliders = ParameterSliders(
         meshcat,
         lcm,
@@ -126,7 +126,10 @@ def _pace(config, lcm, out: Path, args, progress) -> int:
     from admittance.diagrams.hardware.pacer import StatusPacer
 
     progress(f"pacer: status and wrench at {config.rate:g} Hz for {config.duration:g} s")
-    pacer = StatusPacer(lcm, rate=config.rate, force=config.force_reference)
+    from admittance.diagrams.hardware.config import hardware_parts, scenario_of
+
+    positions = hardware_parts(scenario_of(config)).home_positions
+    pacer = StatusPacer(lcm, rate=config.rate, positions=positions, force=config.force_reference)
     with stop_on_signals() as stop:
         figures = pacer.run(config.duration, stop)
     with result_folder(out, overwrite=args.force) as folder:

@@ -11,7 +11,7 @@ import sys
 import time
 from collections.abc import Callable
 
-from admittance.diagrams.app.formatting import number
+from admittance.diagrams.views.formatting import number
 
 __all__ = ["Progress"]
 

@@ -2,10 +2,8 @@
 that knows it only through Drake's LCM driver messages (docs/hardware.md)."""
 
 from admittance.diagrams.hardware.config import *  # noqa: F403
-from admittance.diagrams.hardware.control_law import *  # noqa: F403
 from admittance.diagrams.hardware.controller import *  # noqa: F403
 from admittance.diagrams.hardware.interface import *  # noqa: F403
-from admittance.diagrams.hardware.joint_command import *  # noqa: F403
 from admittance.diagrams.hardware.messages import *  # noqa: F403
 from admittance.diagrams.hardware.pacer import *  # noqa: F403
 from admittance.diagrams.hardware.sliders import *  # noqa: F403

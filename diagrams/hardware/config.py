@@ -19,15 +19,17 @@ from pathlib import Path
 
 import yaml
 
-from admittance.diagrams.scenario.files import load_scenario
+from admittance.diagrams.robots.kinds import robot_of
+from admittance.diagrams.robots.record import HardwareParts
+from admittance.diagrams.scenario.files import load_scenario, load_scenario_data
 from admittance.diagrams.scenario.schema import ScenarioError, load_typed, parse_value
-from admittance.diagrams.scenario.spatial_arm import SpatialScenario, load_spatial_scenario
 
 __all__ = [
     "BUILTIN_HARDWARE_SCENARIOS",
     "HardwareConfig",
     "load_hardware_config",
-    "spatial_scenario",
+    "hardware_parts",
+    "scenario_of",
 ]
 
 # The built-in spatial scenarios the hardware split runs by name.
@@ -146,8 +148,8 @@ def _split(source, overrides) -> tuple[dict, dict, list[str]]:
                 f"({', '.join(BUILTIN_HARDWARE_SCENARIOS)}) nor a spatial scenario's YAML file"
             )
         data = yaml.safe_load(path.read_text()) or {}
-        if not isinstance(data, dict) or data.get("kind") != "spatial":
-            raise ScenarioError(f"kind: the hardware runs a spatial scenario; '{source}' is not")
+        if not isinstance(data, dict):
+            raise ScenarioError(f"scenario: {path} must hold a mapping of scenario keys")
         data.setdefault("name", path.stem)
     section = data.pop("hardware", None) or {}
     if not isinstance(section, dict):
@@ -167,16 +169,30 @@ def _split(source, overrides) -> tuple[dict, dict, list[str]]:
     return data, section, rest
 
 
-def spatial_scenario(config: HardwareConfig) -> SpatialScenario:
-    """The spatial scenario `config` was loaded from, with its overrides."""
+def scenario_of(config: HardwareConfig):
+    """The scenario `config` was loaded from, with its overrides."""
     data, _, _ = _split(config.scenario, ())
     if not data:
         return load_scenario(config.scenario, config.scenario_overrides)
-    data.pop("kind")
-    return load_spatial_scenario(data, config.scenario_overrides)
+    return load_scenario_data(data, config.scenario_overrides)
 
 
-def _check_what_the_hardware_runs(scenario: SpatialScenario) -> None:
+def hardware_parts(scenario) -> HardwareParts:
+    """What the split needs of the scenario's robot (its record's)."""
+    return robot_of(scenario).hardware
+
+
+def _check_robot(scenario, source) -> None:
+    """One line for a scenario whose robot the split cannot drive."""
+    robot = robot_of(scenario)
+    if robot.hardware is None:
+        raise ScenarioError(
+            f"kind: the hardware runs a robot with LCM drivers; '{source}' is {robot.noun} "
+            f"scenario (kind: {robot.kind})"
+        )
+
+
+def _check_what_the_hardware_runs(scenario) -> None:
     """Refuses, in one line, what a scenario asks for that the split does not run: the
     safety layer (the controller runs the paper's law with its watchdogs, not the layer:
     a user who set it must not believe the robot is guarded by it) and injected faults
@@ -212,7 +228,8 @@ def load_hardware_config(source: str | Path | None = None, overrides=()) -> Hard
         )
     config = load_typed(section, HardwareConfig, ())
     config.scenario, config.scenario_overrides = source, rest
-    scenario = spatial_scenario(config)
+    scenario = scenario_of(config)
+    _check_robot(scenario, source)
     _check_what_the_hardware_runs(scenario)
     config.name = scenario.name
     config.duration = scenario.duration if duration is None else duration

@@ -6,7 +6,7 @@ Each ``lcmt_panda_status`` starts one cycle: the clock is the status ``utime`` (
 wall clock), the state is the status's joint positions and velocities, the force is the
 newest ``lcmt_force_torque`` read along the control frame's z by the controller's own model
 of the arm (a controller on hardware has the robot's model). The cycle is one sample of the
-law and the PID (``control_law.SpatialControlLaw``) and publishes one
+law and the PID (its robot's control law, ``SpatialControlLaw`` for a spatial arm) and publishes one
 ``lcmt_panda_command`` whose ``utime`` is the status's.
 
 Watchdogs, each logged with its time:
@@ -20,7 +20,7 @@ Watchdogs, each logged with its time:
   fresh command, holds the arm if the silence lasts; zero torque would drop the press and
   the law, seeing the force fall, would wind up;
 * no status for ``station_timeout`` s: the station is gone (``StationGoneError``);
-* the gains against the sampled loop (``analysis.sampled_gains``: the PID's damping through
+* the gains against the sampled loop (the robot's ``sampled_gains``: the PID's damping through
   the arm and the force loop along the normal, with the command one or more periods
   late): at the start at the nominal rate with the one-period delay of a controller that
   answers within the period (gains beyond its bounds: ``ScenarioError``, one line naming
@@ -44,8 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from drake import lcmt_force_torque, lcmt_panda_command, lcmt_panda_status
 
-from admittance.diagrams.hardware.config import HardwareConfig, spatial_scenario
-from admittance.diagrams.hardware.control_law import SpatialControlLaw
+from admittance.diagrams.hardware.config import HardwareConfig, hardware_parts, scenario_of
 from admittance.diagrams.hardware.interface import joint_gains
 from admittance.diagrams.hardware.messages import CHANNELS, decode_parameters
 from admittance.diagrams.hardware.timing import CycleTiming
@@ -114,14 +113,14 @@ class AdmittanceController:
         self._clock = clock
         self._cpu_clock = cpu_clock
         self.position_mode = config.mode == "position"
-        scenario = spatial_scenario(config)
+        scenario = scenario_of(config)
         gains = None
         if self.position_mode:  # the robot's joint controller, as the station runs it
 
             def gains(plant, positions):
                 return joint_gains(plant, positions, config, self.period)
 
-        self.law = SpatialControlLaw(
+        self.law = hardware_parts(scenario).control_law(
             scenario,
             max_force=config.max_force,
             force_bound_gain=config.force_bound_gain,

@@ -18,7 +18,6 @@ from drake import lcmt_force_torque, lcmt_panda_command
 
 from admittance.diagrams.hardware.messages import CHANNELS, status_at_rest
 from admittance.diagrams.hardware.timing import quantiles
-from admittance.diagrams.scenario.spatial_arm import SpatialArmConfig
 
 __all__ = ["StatusPacer"]
 
@@ -29,11 +28,11 @@ SPIN = 2e-4
 class StatusPacer:
     """Publishes status and wrench at `rate` Hz for `duration` s; measures the answers."""
 
-    def __init__(self, lcm, *, rate: float, force: float = 10.0) -> None:
+    def __init__(self, lcm, *, rate: float, positions, force: float = 10.0) -> None:
         self._lcm = lcm
         self.period = 1.0 / rate
-        # The Panda's posture above the table (the spatial scenario's default joint guess).
-        self._status = status_at_rest(0, np.array(SpatialArmConfig().joint_guess))
+        # The robot at rest at `positions` (its record's home posture).
+        self._status = status_at_rest(0, np.array(positions, dtype=float))
         self._wrench = lcmt_force_torque()
         self._wrench.fz = -force  # the tool points into the table: the table pushes along -z
         self._sent: dict[int, float] = {}

@@ -5,7 +5,7 @@ and its wrist sensor would (Drake's hardware_sim convention).
     PANDA_FT       lcmt_force_torque   the wrist sensor's tared wrench, every period
     PANDA_COMMAND  lcmt_panda_command  PandaCommandReceiver -> the command watchdog
 
-The plant is the spatial scenario's (``robots.spatial_arm.AddSpatialArm``: the arm, its
+The plant is the scenario's robot's (its record's ``hardware.add_plant``: the arm, its
 tool welded at ``tool_weld``, the table with the scenario's height error, tilts and contact
 parameters, through Drake's contact engine), started where the simulated loop starts it;
 the wrist sensor is at ``tool_weld`` (the tool body's frame). The station's clock is its
@@ -33,8 +33,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem, LcmSubscriberSystem
 from pydrake.systems.primitives import Demultiplexer, LogVectorOutput
 
-from admittance.diagrams.hardware.config import HardwareConfig, spatial_scenario
-from admittance.diagrams.hardware.control_law import start_positions
+from admittance.diagrams.hardware.config import HardwareConfig, hardware_parts, scenario_of
 from admittance.diagrams.hardware.interface import (
     CommandWatchdog,
     WrenchMessage,
@@ -43,14 +42,7 @@ from admittance.diagrams.hardware.interface import (
 )
 from admittance.diagrams.hardware.messages import CHANNELS
 from admittance.diagrams.loop.point import AddSensorChain
-from admittance.diagrams.robots.spatial_arm import (
-    CONTROL_FRAME,
-    NORMAL_AXIS,
-    TOOL_BODY,
-    TOOL_TIP_FRAME,
-    AddSpatialArm,
-    spatial_point,
-)
+from admittance.diagrams.robots.record import HardwareParts
 from admittance.diagrams.run.metrics import (
     final_window,
     first_contact_time,
@@ -84,6 +76,8 @@ class Station:
     loggers: dict
     # The arm's joints at t = 0, rad.
     initial_positions: np.ndarray
+    # What the station knows of its robot (its record's): frames, the normal axis.
+    parts: HardwareParts
     # The scenario's wrist sensor (sensor.kind wrench), None for the ideal one.
     wrist_sensor: WrenchSensor | None = None
     # The scenario's seed, for the sensor's noise.
@@ -94,13 +88,14 @@ def BuildStation(config: HardwareConfig, lcm, meshcat=None) -> Station:
     """The station of `config` on the LCM instance `lcm` (a DrakeLcm); with `meshcat`, the
     arm drawn there."""
     period = 1.0 / config.rate
-    scenario = spatial_scenario(config)
+    scenario = scenario_of(config)
+    parts = hardware_parts(scenario)
     builder = DiagramBuilder()
-    plant, scene_graph, _ = AddSpatialArm(builder, scenario)
+    plant, scene_graph, _ = parts.add_plant(builder, scenario)
     if meshcat is not None:
         MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
     plant.set_name("panda_plant")
-    initial = start_positions(scenario)
+    initial = parts.start_positions(scenario)
     plant.SetDefaultPositions(initial)
     effort_limits = plant.GetEffortUpperLimits()
     # The robot's gravity compensation, from the same model (arm and tool).
@@ -164,7 +159,7 @@ def BuildStation(config: HardwareConfig, lcm, meshcat=None) -> Station:
     builder.Connect(status.get_output_port(), status_publisher.get_input_port())
 
     sensor = builder.AddNamedSystem(
-        "wrist_sensor", WristWrenchSensor(plant, plant.GetBodyByName(TOOL_BODY))
+        "wrist_sensor", WristWrenchSensor(plant, plant.GetBodyByName(parts.tool_body))
     )
     builder.Connect(plant.get_contact_results_output_port(), sensor.GetInputPort("contact_results"))
     builder.Connect(plant.get_body_poses_output_port(), sensor.GetInputPort("body_poses"))
@@ -174,7 +169,7 @@ def BuildStation(config: HardwareConfig, lcm, meshcat=None) -> Station:
     )
     wrist = None
     if scenario.sensor.kind == "wrench":  # the scenario's sensor: bias, noise, low-pass
-        wrist = _AddWristSensor(builder, scenario, plant, initial)
+        wrist = _AddWristSensor(builder, scenario, parts.point(scenario, plant, initial), plant)
         message = builder.AddNamedSystem("wrench_message", WrenchMessage())
         builder.Connect(wrist.compensated_wrench_output, message.get_input_port())
         builder.Connect(message.get_output_port(), wrench_publisher.get_input_port())
@@ -196,16 +191,16 @@ def BuildStation(config: HardwareConfig, lcm, meshcat=None) -> Station:
         watchdog=watchdog,
         loggers=loggers,
         initial_positions=initial,
+        parts=parts,
         wrist_sensor=wrist,
         seed=int(scenario.seed),
     )
 
 
-def _AddWristSensor(builder, scenario, plant, initial) -> WrenchSensor:
+def _AddWristSensor(builder, scenario, point, plant) -> WrenchSensor:
     """The scenario's wrist force/torque sensor at ``tool_weld`` (``sensor.kind: wrench``),
-    built by the simulated loop's own step (``loop.point.AddSensorChain`` on
-    ``spatial_point``), its noise from a RandomSource at its readout period."""
-    point = spatial_point(scenario, plant, initial)
+    built by the simulated loop's own step (``loop.point.AddSensorChain`` on the robot's
+    force-controlled `point`), its noise from a RandomSource at its readout period."""
     return AddSensorChain(builder, point, None, plant=plant).sensor
 
 
@@ -311,12 +306,12 @@ def run_station(
     logs = {name: logger.FindLog(context) for name, logger in station.loggers.items()}
     simulated = context.get_time()
     wrench = logs["wrench"].data()
-    plant = station.plant
+    plant, parts = station.plant, station.parts
     normal_W = (
-        plant.GetFrameByName(CONTROL_FRAME)
+        plant.GetFrameByName(parts.control_frame)
         .CalcPoseInWorld(plant.CreateDefaultContext())
         .rotation()
-        .matrix()[:, NORMAL_AXIS]
+        .matrix()[:, parts.normal_axis]
     )
     return StationRun(
         times=logs["wrench"].sample_times().copy(),
@@ -336,13 +331,16 @@ def run_station(
 def _tip_heights(station: Station, log) -> np.ndarray:
     """The tool tip's depth along the control frame's z (into the planned table) at each
     logged state, m (0 on the planned surface, negative above it)."""
-    plant = station.plant
+    plant, parts = station.plant, station.parts
     context = plant.CreateDefaultContext()
-    tip, frame = plant.GetFrameByName(TOOL_TIP_FRAME), plant.GetFrameByName(CONTROL_FRAME)
+    tip = plant.GetFrameByName(parts.tip_frame)
+    frame = plant.GetFrameByName(parts.control_frame)
     depths = []
     for x in log.data().T:
         plant.SetPositionsAndVelocities(context, x)
-        depths.append(plant.CalcRelativeTransform(context, frame, tip).translation()[NORMAL_AXIS])
+        depths.append(
+            plant.CalcRelativeTransform(context, frame, tip).translation()[parts.normal_axis]
+        )
     return np.asarray(depths)
 
 

@@ -1,11 +1,7 @@
-"""The loop of the paper's Fig. 1 as Drake Diagrams: plan, kinematics, contact, sensor,
-force controller (or the safety layer) and PID, wired for each force-controlled point."""
+"""The loop of the paper's Fig. 1 as Drake Diagrams, the steps every robot shares: the
+force-controlled point (plan, kinematics, contact, sensor, force controller, PID) and the
+safety layer's systems. Each robot's builder is in its package (``robots.<name>.loop``)."""
 
 from admittance.diagrams.loop.build import *  # noqa: F403
 from admittance.diagrams.loop.layer_systems import *  # noqa: F403
-from admittance.diagrams.loop.planar_arm import *  # noqa: F403
-from admittance.diagrams.loop.planar_gripper import *  # noqa: F403
 from admittance.diagrams.loop.point import *  # noqa: F403
-from admittance.diagrams.loop.safety_layer import *  # noqa: F403
-from admittance.diagrams.loop.spatial_arm import *  # noqa: F403
-from admittance.diagrams.loop.spatial_safety import *  # noqa: F403

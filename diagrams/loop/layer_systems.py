@@ -1,7 +1,7 @@
 """The safety layer's four systems at one force point, built and wired alike on every
 robot (docs/safety.md): the momentum observer, the sensor monitor, the stiffness
-estimator and the safe law. Each robot's layer (loop.safety_layer for the planar arm,
-loop.spatial_safety for a spatial arm's tool tip) says what is its own through
+estimator and the safe law. Each robot's layer (robots.planar_arm.safety_layer for the planar arm,
+robots.spatial_arm.safety_layer for a spatial arm's tool tip) says what is its own through
 ``LayerNumbers`` and wires the reading, Fr, Xd and the law's Xr.
 """
 

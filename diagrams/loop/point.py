@@ -4,7 +4,7 @@ Each step below wires one part of the loop at a :class:`ForcePoint` of the robot
 description: the point's kinematics (X, dX/dt and J, from the plant), its sensor chain
 (the FlexiForce with its faults and noise, or the true force), its force controller (the
 paper's law or a baseline), Xc = Xd + Xr, and its Cartesian PID (eq. 14-16). Each robot's
-builder (``loop.planar_arm``, ``loop.planar_gripper``) composes them with what is its own:
+builder (each robot package's ``loop``) composes them with what is its own:
 its plant, its contact (the analytic wall of eq. 4, or Drake's contact engine), its plan,
 and how its points' torques reach the actuators. A sensor, a fault or a law added here
 reaches every robot.

@@ -1,7 +1,6 @@
-"""The robots: each one's plant (model files, gravity, time step), its actuated joints,
-its force-controlled points and their frames, and its inverse kinematics."""
+"""The robots, one package each (``planar_arm``, ``planar_gripper``, ``spatial_arm``), and
+what every robot's package shares: the description of a force-controlled point
+(:mod:`.description`) and planar inverse kinematics (:mod:`.inverse_kinematics`).
 
-from admittance.diagrams.robots.description import *  # noqa: F403
-from admittance.diagrams.robots.planar_arm import *  # noqa: F403
-from admittance.diagrams.robots.planar_gripper import *  # noqa: F403
-from admittance.diagrams.robots.spatial_arm import *  # noqa: F403
+Importing this package imports no robot: a robot's package is imported where it is used.
+"""

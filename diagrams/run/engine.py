@@ -38,7 +38,7 @@ class RunResult:
     """What every robot's run returns: its scenario and its logged time series as plain
     arrays (SI units), with its metrics.
 
-    Each robot's result (run.planar_arm's SimulationResult, run.planar_gripper's
+    Each robot's result (robots.planar_arm.run's SimulationResult, robots.planar_gripper.run's
     GraspResult) adds its own series and metrics; the result folder, the figures and the
     replay take any of them (a ``columns()`` of the timeseries.csv, ``metrics``,
     ``scenario``).

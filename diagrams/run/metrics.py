@@ -26,6 +26,7 @@ __all__ = [
     "trailing_average",
     "until_mask",
     "window_mask",
+    "settling_columns",
 ]
 
 # Window over which "steady state" and "before an event" errors are averaged, s.
@@ -126,3 +127,18 @@ def least_squares_slope(time: np.ndarray, values: np.ndarray) -> float:
     if time.size < 2:
         return 0.0
     return float(np.polyfit(time - time[0], values, 1)[0])
+
+
+def settling_columns(metrics: dict) -> dict[str, float | None]:
+    """The settling time after each event of `metrics` as flat columns.
+
+    ``settling_<kind>_<i>`` (s; None = not settled before the next event), ``i`` counting
+    the events of that kind from 0: the names of the sweep's and the comparison's tables.
+    """
+    columns: dict[str, float | None] = {}
+    counts: dict[str, int] = {}
+    for event in metrics.get("events", []):
+        kind = event["kind"]
+        columns[f"settling_{kind}_{counts.get(kind, 0)}"] = event["settling_time"]
+        counts[kind] = counts.get(kind, 0) + 1
+    return columns

@@ -1,10 +1,9 @@
-"""Scenario files: the built-in scenarios, reading a YAML file, and loading either kind.
+"""Scenario files: the built-in scenarios, reading a YAML file, and loading any kind.
 
 ``load_scenario`` reads a built-in name or a YAML path, applies ``--set`` overrides, and
-returns a validated scenario of the file's ``kind``: the paper's planar arm against its
-wall (no ``kind``, or ``kind: arm``), Drake's planar gripper holding a brick
-(``kind: grasp``) or a real arm's tool on a table (``kind: spatial``). Every problem
-is one ``ScenarioError`` line naming the key.
+returns a validated scenario of the file's ``kind``, loaded by that robot's record (the
+table of kinds, ``robots.kinds``). Every problem is one ``ScenarioError`` line naming the
+key.
 """
 
 
@@ -18,27 +17,21 @@ from pathlib import Path
 import yaml  # PyYAML, which pydrake.common.yaml is built on
 from pydrake.common.yaml import yaml_dump_typed, yaml_load
 
-from admittance.diagrams.scenario.planar_arm import Scenario
-from admittance.diagrams.scenario.planar_gripper import load_grasp_scenario
 from admittance.diagrams.scenario.schema import (
     ScenarioError,
-    load_typed,
 )
-from admittance.diagrams.scenario.spatial_arm import load_spatial_scenario
-from admittance.diagrams.scenario.validation import validate
 
 __all__ = [
     "builtin_scenario_names",
+    "load_scenario_data",
+    "scenario_file",
+    "worker_source",
     "load_scenario",
     "scenario_to_yaml",
 ]
 
 # The built-in scenario files (package data beside this package).
 SCENARIO_DIR = Path(__file__).resolve().parents[1] / "scenarios"
-# A scenario file's top-level `kind`: absent or "arm" for the arm against its wall (the
-# schema below), "grasp" for the planar gripper (diagrams/scenario/planar_gripper.py),
-# "spatial" for a real arm's tool on a table (diagrams/scenario/spatial_arm.py).
-SCENARIO_KINDS = ("arm", "grasp", "spatial")
 
 
 # --- loading ----------------------------------------------------------------------------
@@ -46,6 +39,23 @@ SCENARIO_KINDS = ("arm", "grasp", "spatial")
 
 def builtin_scenario_names() -> list[str]:
     return sorted(p.stem for p in SCENARIO_DIR.glob("*.yaml"))
+
+
+def scenario_file(scenario: str) -> Path | None:
+    """The YAML file behind `scenario` (as load_scenario resolves it), or None."""
+    path = Path(scenario)
+    if not path.suffix and scenario in builtin_scenario_names():
+        return SCENARIO_DIR / f"{scenario}.yaml"
+    return path.resolve() if path.is_file() else None
+
+
+def worker_source(scenario: str) -> str:
+    """What another process loads for `scenario`: a built-in by its name, a YAML file by its
+    absolute path (the process may run in another folder)."""
+    file = scenario_file(scenario)
+    if file is None or file.parent == SCENARIO_DIR:
+        return file.stem if file is not None else scenario
+    return str(file)
 
 
 def _kind_of(value) -> str:
@@ -157,31 +167,42 @@ def _read_source(source: str | Path | None) -> tuple[dict, str]:
 def load_scenario(
     source: str | Path | None = None,
     overrides: typing.Sequence[str] | typing.Mapping[str, typing.Any] = (),
-) -> Scenario:
+):
     """Loads a scenario and applies dotted-key overrides.
 
     Args:
         source: a built-in scenario name, a YAML path, or None for the defaults.
         overrides: "key=value" strings (as given to --set) or a {key: value} mapping.
 
-    A file whose top-level ``kind`` is ``grasp`` is a grasp scenario: it is loaded with
-    its own schema (diagrams/scenario/planar_gripper.py) and a GraspScenario is returned;
-    ``spatial`` gives a SpatialScenario (diagrams/scenario/spatial_arm.py).
+    The file's top-level ``kind`` (default: the table's first) picks the robot, whose
+    record loads the rest with its own schema and validation.
 
     Raises:
         ScenarioError: one line naming the first bad key and what is allowed.
     """
     data, _ = _read_source(source)
-    kind = data.pop("kind", "arm")
-    if kind not in SCENARIO_KINDS:
-        raise ScenarioError(f"kind: must be one of {', '.join(SCENARIO_KINDS)}, got {kind!r}")
-    if kind == "grasp":
-        return load_grasp_scenario(data, overrides)
-    if kind == "spatial":
-        return load_spatial_scenario(data, overrides)
-    return validate(load_typed(data, Scenario, overrides))
+    return load_scenario_data(data, overrides)
 
 
-def scenario_to_yaml(scenario: Scenario) -> str:
+def load_scenario_data(
+    data: dict,
+    overrides: typing.Sequence[str] | typing.Mapping[str, typing.Any] = (),
+):
+    """A validated scenario from a scenario file's mapping (its ``kind`` picks the robot)
+    and dotted-key overrides.
+
+    Raises:
+        ScenarioError: one line naming the first bad key and what is allowed.
+    """
+    from admittance.diagrams.robots.kinds import DEFAULT_KIND, KINDS, robot
+
+    data = dict(data)
+    kind = data.pop("kind", DEFAULT_KIND)
+    if not isinstance(kind, str) or kind not in KINDS:
+        raise ScenarioError(f"kind: must be one of {', '.join(KINDS)}, got {kind!r}")
+    return robot(kind).load(data, overrides)
+
+
+def scenario_to_yaml(scenario) -> str:
     """The full scenario, every key, as YAML (written next to results)."""
     return yaml_dump_typed(scenario)

@@ -6,7 +6,7 @@ SceneGraph + MeshcatVisualizer), so the simulated loop never carries a visualize
 holds what every robot's replay uses (:class:`Replay`, :class:`ForceArrow`, the frame
 times, the view bounds, the arrow scale, the atomic write) and the arm's replay,
 :func:`write_meshcat_replay`: the arm, the wall at Xe(t) and the contact force as an arrow,
-animated in a 2-D view of the x-y plane. The gripper's is ``views.gripper_replay``;
+animated in a 2-D view of the x-y plane. The gripper's is ``robots.planar_gripper.replay``;
 ``views.figures.write_replay`` picks the robot's.
 """
 
@@ -30,16 +30,11 @@ from pydrake.geometry import (
     MeshcatVisualizerParams,
     Rgba,
     Role,
-    Sphere,
 )
 from pydrake.math import RigidTransform, RotationMatrix
-from pydrake.multibody.tree import BodyIndex
 from pydrake.systems.framework import (
     DiagramBuilder,
 )
-
-from admittance.diagrams.robots.planar_arm import AddScenarioArm
-from admittance.diagrams.run.planar_arm import SimulationResult
 
 __all__ = [
     "ForceArrow",
@@ -51,7 +46,6 @@ __all__ = [
     "staging_path",
     "view_bounds",
     "write_atomically",
-    "write_meshcat_replay",
 ]
 
 # ---------------------------------------------------------------------------- replay
@@ -69,27 +63,19 @@ FORCE_ARROW_MAX_LENGTH = 0.25
 VIEW_MARGIN = 0.05
 # The view shows its whole x range in any window at least this many times wider than tall.
 VIEW_ASPECT = 1.4
-# Wall slab thickness along x, m (it spans the view's height).
-WALL_THICKNESS = 0.03
-# Heights (world z) at which the overlays are drawn: the camera looks down -z, so a larger
-# z is drawn on top. The arm's drive cylinders reach z = 0.055.
-WALL_Z = 0.0
 FORCE_Z = 0.08
-# Paths in the Meshcat scene tree.
-WALL_PATH = "/replay/wall"
 FORCE_PATH = "/replay/force"
 FORCE_REFERENCE_PATH = "/replay/force_reference"
 COMMANDED_PATH = "/replay/commanded_position"
 
-_WALL_COLOR = Rgba(0.55, 0.42, 0.30, 0.75)
 # Colours of the overlays every replay draws.
 FORCE_COLOR = Rgba(0.85, 0.10, 0.10, 1.0)
 REFERENCE_COLOR = Rgba(0.10, 0.45, 0.85, 0.9)
 COMMANDED_COLOR = Rgba(0.10, 0.60, 0.20, 0.9)
 
-_ARROW_SHAFT_WIDTH = 0.008
-_ARROW_HEAD_LENGTH = 0.02
-_ARROW_HEAD_RADIUS = 0.012
+ARROW_SHAFT_WIDTH = 0.008
+ARROW_HEAD_LENGTH = 0.02
+ARROW_HEAD_RADIUS = 0.012
 # A zero-length shaft is drawn with this scale (three.js dislikes a singular scale).
 _TINY_SCALE = 1e-4
 
@@ -284,88 +270,3 @@ class Replay:
         )
         write_atomically(path, self.meshcat.StaticHtml().encode("utf-8"))
         return path
-
-
-def write_meshcat_replay(result: SimulationResult, path: str | os.PathLike) -> Path:
-    """Writes a self-contained HTML replay of a finished run, viewable offline.
-
-    The arm (illustration geometry of the scenario's URDF) is posed at the logged joint
-    positions, REPLAY_FRAMES_PER_SECOND frames per simulated second; the wall is a slab whose
-    face is at Xe(t); a red arrow from the fingertip into the wall has a length proportional
-    to the true contact force (FORCE_ARROW_METERS_PER_NEWTON, less if the peak would not
-    fit), a blue tick marks the length of Fr on the same scale, and a green dot marks the
-    commanded position Xc = Xd + Xr. The view is orthographic onto the x-y plane: +x to the
-    right, +y (against gravity) up, scaled to fit the window's height. The animation plays
-    once, in real time, when the file is opened and holds its last frame; Meshcat's "Open
-    Controls" menu (Animations) plays it again, pauses it, changes its speed or scrubs it.
-
-    The replay is made on a diagram of its own (the scenario's arm, a SceneGraph and a
-    MeshcatVisualizer on a Meshcat served on localhost for the time of the call).
-
-    Args:
-        result: a finished run (``run_scenario``).
-        path: the HTML file to write; its folder is created if needed.
-
-    Returns:
-        The path written.
-    """
-    path = Path(path)
-    scenario = result.scenario
-    times, joint_positions = replay_frames(result)
-    tip_xy = interpolate(result.time, result.pose[:, :2], times)
-    wall_position = interpolate(result.time, result.wall_position, times)
-    force = np.maximum(interpolate(result.time, result.force, times), 0.0)
-    commanded_xy = interpolate(
-        result.time, (result.desired_position + result.reference_offset)[:, :2], times
-    )
-    meters_per_newton = arrow_scale(force, FORCE_ARROW_METERS_PER_NEWTON, FORCE_ARROW_MAX_LENGTH)
-    arrow_length = force * meters_per_newton
-    reference_length = scenario.force_reference * meters_per_newton
-
-    builder = DiagramBuilder()
-    replay = Replay(builder, *AddScenarioArm(builder, scenario.arm))
-    plant = replay.plant
-
-    # Fit the view around everything drawn: every body of the arm over the run, the wall's
-    # face, the longest arrow and the commanded position.
-    bodies = [plant.get_body(BodyIndex(index)) for index in range(1, plant.num_bodies())]
-    points = [tip_xy, commanded_xy, np.column_stack([wall_position, tip_xy[:, 1]])]
-    points.append(np.column_stack([tip_xy[:, 0] + arrow_length, tip_xy[:, 1]]))
-    points.append(replay.body_positions(joint_positions, bodies)[:, :2])
-    xmin, xmax, ymin, ymax = view_bounds(np.vstack(points))
-
-    # The overlays; their poses are animated below. The wall spans the view's height.
-    meshcat = replay.meshcat
-    wall_height = (ymax - ymin) + 2.0 * VIEW_MARGIN
-    meshcat.SetObject(WALL_PATH, Box(WALL_THICKNESS, wall_height, 0.02), _WALL_COLOR)
-    # The arrow points along +x, the direction of the force the fingertip applies to the wall.
-    arrow = ForceArrow(
-        FORCE_PATH, _ARROW_SHAFT_WIDTH, _ARROW_HEAD_LENGTH, _ARROW_HEAD_RADIUS, FORCE_COLOR
-    )
-    arrow.add_to(meshcat)
-    meshcat.SetObject(FORCE_REFERENCE_PATH, Box(0.003, 0.04, 0.003), REFERENCE_COLOR)
-    meshcat.SetObject(COMMANDED_PATH, Sphere(0.005), COMMANDED_COLOR)
-    wall_y = 0.5 * (ymin + ymax)
-
-    def draw_overlays(animation, frame: int, index: int) -> None:
-        tip, xc = tip_xy[index], commanded_xy[index]
-        animation.SetTransform(
-            frame,
-            WALL_PATH,
-            RigidTransform([wall_position[index] + 0.5 * WALL_THICKNESS, wall_y, WALL_Z]),
-        )
-        arrow.animate(animation, frame, np.array([tip[0], tip[1], FORCE_Z]), arrow_length[index])
-        animation.SetTransform(
-            frame,
-            FORCE_REFERENCE_PATH,
-            RigidTransform([tip[0] + reference_length, tip[1], FORCE_Z + 0.001]),
-        )
-        animation.SetTransform(
-            frame, COMMANDED_PATH, RigidTransform([xc[0], xc[1], FORCE_Z - 0.002])
-        )
-
-    replay.record(times, joint_positions, draw_overlays)
-    # Camera above the plane looking down -z (its +y axis) with world +y up (its +z axis):
-    # its x axis is then world +x, drawn to the right.
-    X_WC = RigidTransform(RotationMatrix.MakeXRotation(-math.pi / 2), [0.0, 0.0, 1.0])
-    return replay.write(path, X_WC, (xmin, xmax, ymin, ymax))

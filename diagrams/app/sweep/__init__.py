@@ -87,7 +87,6 @@ validated), ``runner`` (one simulated point, the worker pool and Ctrl-C, shared 
 from admittance.diagrams.app.sweep.definition import SweepDefinition, SweepPoint, define_sweep
 from admittance.diagrams.app.sweep.points import point_metrics, read_points, run_point
 from admittance.diagrams.app.sweep.run import SweepOutcome, run_sweep
-from admittance.diagrams.app.sweep.runner import WorkerDiedError
 from admittance.diagrams.app.sweep.specs import (
     GRID_FORMS,
     RANDOM_FORMS,
@@ -98,6 +97,7 @@ from admittance.diagrams.app.sweep.specs import (
     parse_random,
 )
 from admittance.diagrams.app.sweep.summary import summarize, table_text
+from admittance.diagrams.run.parallel import WorkerDiedError
 
 __all__ = [
     "GRID_FORMS",

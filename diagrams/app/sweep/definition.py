@@ -9,11 +9,9 @@ import json
 import math
 import typing
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 
 import numpy as np
 
-from admittance.diagrams.app import formatting
 from admittance.diagrams.app.sweep.specs import (
     MAX_POINTS,
     GridAxis,
@@ -22,8 +20,9 @@ from admittance.diagrams.app.sweep.specs import (
     parse_grid,
     parse_random,
 )
-from admittance.diagrams.scenario.files import SCENARIO_DIR, builtin_scenario_names, load_scenario
+from admittance.diagrams.scenario.files import load_scenario, scenario_file, worker_source
 from admittance.diagrams.scenario.schema import ScenarioError, parse_overrides
+from admittance.diagrams.views import formatting
 
 __all__ = ["SweepDefinition", "SweepPoint", "define_sweep"]
 
@@ -98,14 +97,6 @@ class SweepDefinition:
         return f"{self.scenario_name}{' ' + settings if settings else ''} {' '.join(parts)}"
 
 
-def _scenario_file(scenario: str) -> Path | None:
-    """The YAML file behind `scenario` (as load_scenario resolves it), or None."""
-    path = Path(scenario)
-    if not path.suffix and scenario in builtin_scenario_names():
-        return SCENARIO_DIR / f"{scenario}.yaml"
-    return path.resolve() if path.is_file() else None
-
-
 def _point_id(record: dict, values: Mapping, sample: int | None) -> str:
     identity = {
         "scenario": record["scenario"],
@@ -168,11 +159,8 @@ def define_sweep(
     # The base scenario and --set alone first: their errors read as in `admittance simulate`.
     base = load_scenario(scenario, overrides)
     set_values = parse_overrides(overrides)
-    file = _scenario_file(scenario)
-    if file is None or file.parent == SCENARIO_DIR:
-        source = file.stem if file is not None else scenario  # a built-in: by name
-    else:
-        source = str(file)  # a YAML file: by absolute path (workers may run elsewhere)
+    file = scenario_file(scenario)
+    source = worker_source(scenario)
     digest = hashlib.sha256(file.read_bytes()).hexdigest() if file is not None else ""
     record = {
         "scenario": base.name if file is None else file.stem,

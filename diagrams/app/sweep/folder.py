@@ -15,7 +15,9 @@ import os
 import re
 from pathlib import Path
 
-from admittance.diagrams.app.result_folder import (
+from admittance.diagrams.app.sweep.definition import SweepDefinition
+from admittance.diagrams.app.sweep.specs import SweepError
+from admittance.diagrams.results.folder import (
     MARKER,
     OutputPathError,
     atomic_write_text,
@@ -25,8 +27,6 @@ from admittance.diagrams.app.result_folder import (
     named,
     write_marker,
 )
-from admittance.diagrams.app.sweep.definition import SweepDefinition
-from admittance.diagrams.app.sweep.specs import SweepError
 
 __all__ = [
     "DEFINITION_FILE",

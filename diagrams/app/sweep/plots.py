@@ -6,12 +6,12 @@ import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from admittance.diagrams.app import formatting
-from admittance.diagrams.app.formatting import number
-from admittance.diagrams.app.result_folder import atomic_write
 from admittance.diagrams.app.sweep.definition import SweepDefinition
 from admittance.diagrams.app.sweep.folder import plot_name
 from admittance.diagrams.app.sweep.summary import DEGRADED_FRACTION, as_number
+from admittance.diagrams.results.folder import atomic_write
+from admittance.diagrams.views import formatting
+from admittance.diagrams.views.formatting import number
 
 __all__ = ["PLOTTED_METRICS", "plot_summary"]
 

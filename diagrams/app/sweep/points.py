@@ -12,9 +12,9 @@ import os
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
-from admittance.diagrams.app.result_folder import atomic_write_text, json_safe
-from admittance.diagrams.app.sweep.runner import simulate_point
-from admittance.diagrams.run.planar_arm import settling_columns
+from admittance.diagrams.results.folder import atomic_write_text, json_safe
+from admittance.diagrams.run.metrics import settling_columns
+from admittance.diagrams.run.parallel import simulate_point
 
 __all__ = [
     "SCALAR_METRICS",

@@ -7,8 +7,6 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from admittance.diagrams.app.formatting import number, seconds
-from admittance.diagrams.app.result_folder import atomic_write_text
 from admittance.diagrams.app.sweep.definition import SweepDefinition, SweepPoint
 from admittance.diagrams.app.sweep.folder import (
     LOCK_FILE,
@@ -22,15 +20,17 @@ from admittance.diagrams.app.sweep.folder import (
 )
 from admittance.diagrams.app.sweep.plots import plot_summary
 from admittance.diagrams.app.sweep.points import PointsFile, read_points, rewrite_points, run_point
-from admittance.diagrams.app.sweep.runner import (
+from admittance.diagrams.app.sweep.specs import SweepError
+from admittance.diagrams.app.sweep.summary import summarize, table_text
+from admittance.diagrams.results.folder import atomic_write_text
+from admittance.diagrams.run.parallel import (
     WorkerDiedError,
     check_engine,
     check_workers,
     run_tasks,
     sigterm_interrupts,
 )
-from admittance.diagrams.app.sweep.specs import SweepError
-from admittance.diagrams.app.sweep.summary import summarize, table_text
+from admittance.diagrams.views.formatting import number, seconds
 
 __all__ = ["SweepOutcome", "run_sweep"]
 

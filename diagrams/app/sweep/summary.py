@@ -11,10 +11,10 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from admittance.diagrams.app import formatting
-from admittance.diagrams.app.formatting import number, seconds
 from admittance.diagrams.app.sweep.definition import SweepDefinition
 from admittance.diagrams.app.sweep.points import SCALAR_METRICS
+from admittance.diagrams.views import formatting
+from admittance.diagrams.views.formatting import number, seconds
 
 __all__ = ["DEGRADED_FRACTION", "as_number", "degraded", "summarize", "table_text"]
 
