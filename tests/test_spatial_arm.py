@@ -14,7 +14,7 @@ import pytest
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import DiagramBuilder
 
-from admittance.diagrams.robots.spatial_arm import plant as robots
+from admittance.diagrams.robots.spatial_arm import model
 from admittance.diagrams.robots.spatial_arm.plant import (
     CONTROL_FRAME,
     TOOL_TIP_FRAME,
@@ -73,7 +73,7 @@ def test_bad_spatial_keys_name_the_key(override, message):
 
 
 def test_missing_extra_gives_one_line_naming_it(monkeypatch):
-    monkeypatch.setattr(robots, "example_robot_data_packages", lambda: None)
+    monkeypatch.setattr(model, "example_robot_data_packages", lambda: None)
     scenario = load_scenario("panda_surface_press")
     with pytest.raises(ScenarioError) as error:
         AddSpatialArm(DiagramBuilder(), scenario)

@@ -176,7 +176,7 @@ SLIDE_TIMES = (2.5, 3.25, 4.0)
 SLIDE_X = (0.0, 0.01, 0.02)
 # panda_surface_follow's planned contact point (surface.position, surface.height), its Fr,
 # the tool (a 1 cm sphere on a 15 cm shaft: the tip 16 cm from the flange along its z) and
-# the table's thickness (robots.spatial_arm.TABLE_SIZE).
+# the table's thickness (robots.spatial_arm.plant.TABLE_SIZE).
 CONTACT = np.array([0.45, -0.05, 0.2])
 FORCE_REFERENCE = 10.0
 SURFACE_STIFFNESS = 1e5

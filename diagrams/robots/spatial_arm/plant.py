@@ -2,13 +2,11 @@
 
 The paper states its law for any n-joint serial arm with a task vector X in R^m. This module
 loads one from its published description (a URDF or SDF file, or a ``package://`` URL;
-example-robot-data's Franka Panda and UR5 are the built-in scenarios' arms), welds its base
-to the world, and adds what the task needs:
+example-robot-data's Franka Panda and UR5 are the built-in scenarios' arms) through
+:mod:`.model`, which welds its base to the world, gives an actuator to each joint that
+moves the flange (where the description has none) and makes the others rigid, so the hand
+is a rigid part of the last link. This module adds what the task needs:
 
-* **actuators**: one per joint that moves the flange, where the description has none (the
-  Panda's URDF has no ``transmission``), with the effort limit of its ``<limit effort>``;
-  joints that do not move the flange and have no actuator (the Panda's fingers) become
-  welds at their zero position, so the hand is a rigid part of the last link;
 * **the tool**: a body welded to the flange by the weld joint ``tool_weld`` (where a wrist
   force/torque sensor sits), a shaft along the flange's z axis ending in a sphere or a
   disc; its tip frame ``tool_tip`` (the sphere's or the disc's face's point on the axis),
@@ -20,7 +18,9 @@ to the world, and adds what the task needs:
   axis along the planned INWARD normal (into the table, world -z for a level plan) and its
   x axis along the slide: the law's force, Fr and Xr are positive into the surface, as the
   paper arm's are along its wall's normal. The tool is aligned with E when its tip frame's
-  orientation in E is the identity, so the plan's rotation vector is zero.
+  orientation in E is the identity, so the plan's rotation vector is zero;
+* **the force-controlled point** (``spatial_point``): the tool tip in E, its sensor, law
+  and PID.
 
 **Contact.** Drake's compliant point contact on a discrete plant (SAP, "lagged"
 approximation), as the gripper's (docs/grasp.md): a sphere on a box face is one contact
@@ -31,16 +31,16 @@ sampled loop), with Hunt-Crossley dissipation and Coulomb friction. Only the too
 table collide: the arm's own collision geometry is removed (its links never come near the
 table in these tasks, and Drake's default filter would still let non-adjacent links
 touch each other).
+
+The inverse kinematics of the tool tip is :mod:`.inverse_kinematics`'s and the model's
+source :mod:`.model`'s; ``SolveSpatialInverseKinematics`` and
+``example_robot_data_packages`` are importable from here too.
 """
 
 from __future__ import annotations
 
-import importlib.metadata
 import math
-import re
-import xml.etree.ElementTree as ElementTree
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 from pydrake.geometry import (
@@ -52,7 +52,6 @@ from pydrake.geometry import (
     Sphere,
 )
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
-from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import (
     AddMultibodyPlant,
     CoulombFriction,
@@ -61,8 +60,6 @@ from pydrake.multibody.plant import (
 )
 from pydrake.multibody.tree import (
     FixedOffsetFrame,
-    FrameIndex,
-    JacobianWrtVariable,
     SpatialInertia,
     UnitInertia,
     WeldJoint,
@@ -70,26 +67,28 @@ from pydrake.multibody.tree import (
 from pydrake.systems.framework import DiagramBuilder
 
 from admittance.diagrams.robots.description import ForcePoint, force_law, sensor_chain
+from admittance.diagrams.robots.spatial_arm.inverse_kinematics import (
+    SolveSpatialInverseKinematics,
+)
+from admittance.diagrams.robots.spatial_arm.model import example_robot_data_packages, load_arm
 from admittance.diagrams.robots.spatial_arm.scenario import SPATIAL_COORDINATES, SpatialScenario
-from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.systems.posture_task import PostureTask
-from admittance.systems.spatial_kinematics import rotation_vector
 
 __all__ = [
     "CONTROL_FRAME",
     "NORMAL_AXIS",
-    "ROBOTS_EXTRA",
     "TABLE_BODY",
     "TOOL_BODY",
     "TOOL_TIP_FRAME",
     "TOOL_WELD",
     "AddSpatialArm",
-    "frame_names",
-    "SolveSpatialInverseKinematics",
     "SpatialGeometry",
-    "example_robot_data_packages",
     "spatial_point",
     "tool_tip_offset",
+    # Where the loop and the tests import them from (defined in .inverse_kinematics and
+    # .model).
+    "SolveSpatialInverseKinematics",
+    "example_robot_data_packages",
 ]
 
 # The names this module gives to what it adds to the plant.
@@ -104,29 +103,6 @@ NORMAL_AXIS = 2
 TABLE_SIZE = (1.0, 1.0, 0.05)
 # The shaft's radius as a fraction of the tool's radius (drawing only: it never touches).
 SHAFT_RADIUS = 0.4
-# The optional extra that brings example-robot-data, and the packages it registers.
-ROBOTS_EXTRA = 'pip install "optimal-admittance[robots]"'
-EXAMPLE_ROBOT_DATA = "example-robot-data"
-EXAMPLE_ROBOT_PACKAGES = ("panda_description", "ur_description")
-
-
-def example_robot_data_packages() -> dict[str, Path] | None:
-    """{package name: folder} of example-robot-data's descriptions, None if not installed.
-
-    The distribution (a cmeel package) installs its robots under
-    ``cmeel.prefix/share/example-robot-data/robots`` in site-packages; their meshes are
-    named from the package ``example-robot-data`` itself (its share folder).
-    """
-    try:
-        distribution = importlib.metadata.distribution(EXAMPLE_ROBOT_DATA)
-    except importlib.metadata.PackageNotFoundError:
-        return None
-    root = Path(distribution.locate_file("cmeel.prefix/share/example-robot-data/robots"))
-    if not root.is_dir():
-        return None
-    packages = {name: root / name for name in EXAMPLE_ROBOT_PACKAGES if (root / name).is_dir()}
-    packages[EXAMPLE_ROBOT_DATA] = root.parent
-    return packages
 
 
 @dataclass
@@ -145,182 +121,6 @@ class SpatialGeometry:
     # The tool's mass, kg, and its centre of mass in the flange frame, m.
     tool_mass: float
     tool_com: np.ndarray
-
-
-def _model_source(scenario: SpatialScenario) -> tuple[str, dict[str, Path]]:
-    """The model's URL or file path, and the packages to register; one-line errors."""
-    url = scenario.arm.urdf
-    packages = example_robot_data_packages() or {}
-    if url.startswith("package://"):
-        package = url[len("package://") :].split("/", 1)[0]
-        if package in EXAMPLE_ROBOT_PACKAGES and package not in packages:
-            raise ScenarioError(
-                f"arm.urdf: {url} comes from example-robot-data, which is not installed: "
-                f"{ROBOTS_EXTRA}"
-            )
-        return url, packages
-    path = Path(url).expanduser()
-    if not path.is_file():
-        raise ScenarioError(f"arm.urdf: must be an existing URDF or SDF file, got {url!r}")
-    return str(path.resolve()), packages
-
-
-def _efforts_from_file(path: Path) -> dict[str, float]:
-    """{joint name: effort limit} from a URDF's ``<limit effort>`` or an SDF's ``<effort>``."""
-    try:
-        root = ElementTree.parse(path).getroot()
-    except (ElementTree.ParseError, OSError):
-        return {}
-    efforts = {}
-    for joint in root.iter("joint"):
-        limit = joint.find("limit")
-        if limit is None:
-            limit = joint.find("axis/limit")
-        if limit is None:
-            continue
-        text = limit.get("effort") or (limit.findtext("effort") or "")
-        try:
-            value = float(text)
-        except ValueError:
-            continue
-        if value > 0 and math.isfinite(value):
-            efforts[joint.get("name")] = value
-    return efforts
-
-
-_COLLISION = re.compile(r"<collision\b[^>]*?/>|<collision\b.*?</collision>", re.DOTALL)
-# ROS's soft joint limits (the Panda's), which Drake does not read and warns about.
-_SAFETY_CONTROLLER = re.compile(
-    r"<safety_controller\b[^>]*?/>|<safety_controller\b.*?</safety_controller>", re.DOTALL
-)
-_MESH_FILE = re.compile(r'(filename\s*=\s*"|<uri>\s*)([^"<]+)')
-
-
-def _without_collisions(file: Path) -> str:
-    """The model file's text without its collision elements (and without ROS's
-    ``safety_controller`` tags, which Drake ignores with a warning each), relative mesh names
-    made absolute (the text is parsed from a string).
-
-    Only the tool and the table collide here, and Drake refuses the published arms' STL
-    collision meshes (it makes convex hulls of .obj, .vtk and .gltf only), so they are left
-    out before parsing rather than removed after.
-    """
-    text = file.read_text(encoding="utf-8")
-    folder = file.resolve().parent
-
-    def absolute(match: re.Match) -> str:
-        name = match.group(2).strip()
-        if "://" in name or Path(name).is_absolute():
-            return match.group(0)
-        return match.group(1) + str(folder / name)
-
-    text = _SAFETY_CONTROLLER.sub("", _COLLISION.sub("", text))
-    return _MESH_FILE.sub(absolute, text)
-
-
-# How many names an unknown-frame message lists of the links, and of the other frames.
-SHOWN_LINKS = 40
-SHOWN_OTHER_FRAMES = 10
-
-
-def _listed(names: list[str], most: int) -> str:
-    """`names` joined, whole names only: the first `most` and how many more."""
-    more = f" and {len(names) - most} more" if len(names) > most else ""
-    return ", ".join(names[:most]) + more
-
-
-def frame_names(plant: MultibodyPlant) -> tuple[list[str], list[str]]:
-    """The names a frame key may take: the links (body frames), then the other frames
-    (joint frames, frames the model adds), each sorted; the world and Drake's own
-    ``_``-prefixed frames left out."""
-    links, others = set(), set()
-    for i in range(plant.num_frames()):
-        frame = plant.get_frame(FrameIndex(i))
-        name = frame.name()
-        if not name or name.startswith("_") or name == "world":
-            continue
-        is_link = frame.index() == frame.body().body_frame().index()
-        (links if is_link else others).add(name)
-    return sorted(links), sorted(others - links)
-
-
-def _frame(plant: MultibodyPlant, name: str, key: str):
-    if not plant.HasFrameNamed(name):
-        links, others = frame_names(plant)
-        listed = f"its links: {_listed(links, SHOWN_LINKS)}"
-        if others:
-            listed += f"; its other frames: {_listed(others, SHOWN_OTHER_FRAMES)}"
-        raise ScenarioError(f"{key}: the model has no frame named {name!r}; {listed}")
-    return plant.GetFrameByName(name)
-
-
-def _load_arm(plant: MultibodyPlant, scenario: SpatialScenario) -> list[str]:
-    """Parses the model, welds its base, makes its flange chain actuated and its other
-    joints rigid; returns the actuated joints' names."""
-    source, packages = _model_source(scenario)
-    parser = Parser(plant)
-    for name, folder in packages.items():
-        if not parser.package_map().Contains(name):
-            parser.package_map().Add(name, str(folder))
-    try:
-        file = Path(parser.package_map().ResolveUrl(source)) if "://" in source else Path(source)
-        parser.AddModelsFromString(_without_collisions(file), file.suffix.lstrip(".").lower())
-    except (RuntimeError, OSError, UnicodeDecodeError) as error:
-        first = str(error).strip().splitlines()[0] if str(error).strip() else "unreadable"
-        raise ScenarioError(f"arm.urdf: Drake cannot read {source!r}: {first}") from None
-    arm = scenario.arm
-    base = _frame(plant, arm.base_frame, "arm.base_frame")
-    flange = _frame(plant, arm.flange_frame, "arm.flange_frame")
-    joints = [plant.get_joint(i) for i in plant.GetJointIndices()]
-    parent_joint = {joint.child_body().index(): joint for joint in joints}
-    # The joints between the flange and the base (walked before any joint is removed: a
-    # removed joint's Python handle points at freed memory).
-    chain, body = set(), flange.body().index()
-    while body in parent_joint and body not in (base.body().index(), plant.world_body().index()):
-        chain.add(parent_joint[body].name())
-        body = parent_joint[body].parent_body().index()
-    existing = parent_joint.get(base.body().index())
-    if existing is not None and existing.parent_body().index() == plant.world_body().index():
-        # The description welds its base to its own "world" link (the UR5's): the
-        # scenario's weld replaces it.
-        joints.remove(existing)
-        plant.RemoveJoint(existing)
-    plant.WeldFrames(plant.world_frame(), base, RigidTransform(arm.base_position))
-    efforts = _efforts_from_file(file)
-    actuated = {plant.get_joint_actuator(i).joint().name() for i in plant.GetJointActuatorIndices()}
-    # Moving joints: those that move the flange get an actuator if they have none; the
-    # others become welds at their zero position.
-    rigid = []
-    for joint in joints:
-        if joint.num_velocities() == 0 or joint.name() in actuated:
-            continue
-        if joint.name() in chain:
-            if joint.num_velocities() != 1:
-                raise ScenarioError(
-                    f"arm.urdf: joint {joint.name()!r} moves the flange with "
-                    f"{joint.num_velocities()} degrees of freedom; a serial arm's joints "
-                    "have one"
-                )
-            effort = efforts.get(joint.name(), math.inf)
-            plant.AddJointActuator(f"{joint.name()}_actuator", joint, effort)
-            continue
-        rigid.append(joint)
-    if rigid:
-        # The description's mimic couplers (the Panda's second finger follows the first)
-        # go with the joints they couple: Drake removes a joint only from a plant without
-        # constraints.
-        for constraint in plant.GetConstraintIds():
-            plant.RemoveConstraint(constraint)
-    for joint in rigid:
-        parent, child, name = joint.frame_on_parent(), joint.frame_on_child(), joint.name()
-        plant.RemoveJoint(joint)
-        plant.AddJoint(WeldJoint(f"{name}_weld", parent, child, RigidTransform()))
-    names = [plant.get_joint_actuator(i).joint().name() for i in plant.GetJointActuatorIndices()]
-    if not names:
-        raise ScenarioError(
-            f"arm.flange_frame: no joint moves {arm.flange_frame!r} (is it on the arm?)"
-        )
-    return names
 
 
 def _contact_properties(scenario: SpatialScenario) -> ProximityProperties:
@@ -430,7 +230,7 @@ def AddSpatialArm(builder: DiagramBuilder, scenario: SpatialScenario):
     plant, scene_graph = AddMultibodyPlant(config, builder)
     plant.set_name("plant")
     scene_graph.set_name("scene_graph")
-    actuated = _load_arm(plant, scenario)
+    actuated = load_arm(plant, scenario)
     # Only the tool and the table collide (see the module's docstring).
     inspector = scene_graph.model_inspector()
     for geometry in inspector.GetAllGeometryIds(Role.kProximity):
@@ -455,62 +255,6 @@ def AddSpatialArm(builder: DiagramBuilder, scenario: SpatialScenario):
         tool_com=np.array([0.0, 0.0, 0.5 * scenario.tool.length]),
     )
     return plant, scene_graph, geometry
-
-
-def SolveSpatialInverseKinematics(
-    plant: MultibodyPlant,
-    frame_name: str,
-    X_WT: RigidTransform,
-    joint_guess,
-    *,
-    tolerance: float = 1e-10,
-    max_iterations: int = 200,
-) -> np.ndarray:
-    """Joint positions that put `frame_name` at the pose X_WT, by damped Newton steps.
-
-    The step is the least-squares solution of J dq = (rotation vector, position error);
-    a redundant arm's remaining freedom pulls towards `joint_guess` (a null-space step),
-    so the guess picks the branch and the posture.
-
-    Raises:
-        ValueError: the pose is not reached (out of the workspace, singular, or beyond the
-            joint limits).
-    """
-    context = plant.CreateDefaultContext()
-    frame = plant.GetFrameByName(frame_name)
-    guess = np.zeros(plant.num_positions())
-    given = np.asarray(joint_guess, dtype=float)
-    guess[: min(guess.size, given.size)] = given[: guess.size]
-    q = guess.copy()
-    for _ in range(max_iterations):
-        plant.SetPositions(context, q)
-        X = plant.CalcRelativeTransform(context, plant.world_frame(), frame)
-        error = np.concatenate(
-            [
-                rotation_vector((X_WT.rotation() @ X.rotation().inverse()).matrix().tolist()),
-                X_WT.translation() - X.translation(),
-            ]
-        )
-        if np.linalg.norm(error) < tolerance:
-            break
-        J = plant.CalcJacobianSpatialVelocity(
-            context,
-            JacobianWrtVariable.kQDot,
-            frame,
-            np.zeros(3),
-            plant.world_frame(),
-            plant.world_frame(),
-        )
-        pseudo_inverse = np.linalg.pinv(J, rcond=1e-6)
-        step = pseudo_inverse @ error
-        step += (np.eye(q.size) - pseudo_inverse @ J) @ (0.2 * (guess - q))
-        q = q + step * min(1.0, 0.3 / max(np.max(np.abs(step)), 1e-12))
-    else:
-        raise ValueError(f"the pose is not reached from {given.tolist()} (error {error.tolist()})")
-    low, high = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
-    if np.any(q < low - 1e-9) or np.any(q > high + 1e-9):
-        raise ValueError(f"the pose needs joints {q.tolist()} beyond the joint limits")
-    return q
 
 
 def spatial_point(

@@ -9,9 +9,9 @@ MeshcatVisualizer), so that the simulated loop never carries a visualizer.
 Panda's and the UR5's visual meshes in example-robot-data are Collada (.dae) files, which
 Drake's Meshcat sends whole (a ``_meshfile_geometry`` of format ``dae``, read by the
 viewer's Collada loader), in Drake's default grey (the URDFs give them no material); the
-collision meshes are never loaded (robots.spatial_arm.plant removes them). The tool (shaft and
-sphere or disc) and the table (at its true height and tilt, not the plan's) are the
-plant's own primitives. The Panda's meshes make a file of about 16 MB.
+collision meshes are never loaded (robots.spatial_arm.model leaves them out). The tool
+(shaft and sphere or disc) and the table (at its true height and tilt, not the plan's) are
+the plant's own primitives. The Panda's meshes make a file of about 16 MB.
 """
 
 from __future__ import annotations

@@ -347,7 +347,7 @@ def validate_spatial(scenario: SpatialScenario) -> SpatialScenario:
     """Every key checked; raises ScenarioError naming the first bad key and what is allowed.
 
     The model file itself (its frames, its actuators) is checked where it is loaded
-    (robots.spatial_arm.plant), with the same one-line errors.
+    (robots.spatial_arm.model), with the same one-line errors.
     """
     s = scenario
     require(s.kind == "spatial", "kind", "'spatial' for a spatial-arm scenario", s.kind)
