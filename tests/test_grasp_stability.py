@@ -15,12 +15,22 @@ from pydrake.multibody.tree import JacobianWrtVariable
 
 from admittance.diagrams.analysis.linear import critical_gain, lyapunov_certificate, modal_summary
 from admittance.diagrams.robots.planar_gripper.analysis import (
-    NEUTRAL_RESOLUTION,
-    FindGraspEquilibrium,
-    LinearizeGraspStep,
     analyse_grasp,
     confirm_gamma,
     critical_finger_gammas,
+)
+from admittance.diagrams.robots.planar_gripper.equilibrium import (
+    FindGraspEquilibrium,
+    LinearizeGraspStep,
+)
+from admittance.diagrams.robots.planar_gripper.loop import BuildGrasp, SetGraspInitialConditions
+from admittance.diagrams.robots.planar_gripper.plant import contact_frame, tip_centre_frame
+from admittance.diagrams.robots.planar_gripper.stability_report import (
+    format_grasp_report,
+    write_grasp_report,
+)
+from admittance.diagrams.robots.planar_gripper.step_map import (
+    NEUTRAL_RESOLUTION,
     get_discrete_state,
     matrix_at_gammas,
     offset_rows,
@@ -28,12 +38,6 @@ from admittance.diagrams.robots.planar_gripper.analysis import (
     step_once,
     stepped_forces,
     without_near_neutral_modes,
-)
-from admittance.diagrams.robots.planar_gripper.loop import BuildGrasp, SetGraspInitialConditions
-from admittance.diagrams.robots.planar_gripper.plant import contact_frame, tip_centre_frame
-from admittance.diagrams.robots.planar_gripper.stability_report import (
-    format_grasp_report,
-    write_grasp_report,
 )
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.diagrams.scenario.schema import ScenarioError
