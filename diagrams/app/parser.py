@@ -109,7 +109,20 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
         "-q", "--quiet", dest="quiet_all", action="store_true", help="no progress lines on stderr"
     )
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    # In the order of `admittance --help`.
+    _add_simulate(commands, handlers)
+    _add_diagram(commands, handlers)
+    _add_stability(commands, handlers)
+    _add_compare(commands, handlers)
+    _add_grasp_compare(commands, handlers)
+    _add_bench(commands, handlers)
+    _add_sweep(commands, handlers)
+    _add_hardware_commands(commands, handlers)
+    return parser
 
+
+def _add_simulate(commands, handlers: Mapping[str, Callable]) -> None:
+    """`simulate`: one scenario headless, its result folder (and a Meshcat replay)."""
     simulate = _subcommand(commands, "simulate", "run one scenario headless, write results")
     simulate.add_argument("--out", help="output folder (default: results/<scenario name>)")
     simulate.add_argument("--force", action="store_true", help=SIMULATE_FORCE_HELP)
@@ -120,12 +133,18 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     )
     simulate.set_defaults(handler=handlers["simulate"])
 
+
+def _add_diagram(commands, handlers: Mapping[str, Callable]) -> None:
+    """`diagram`: the closed loop's block diagram."""
     diagram = _subcommand(
         commands, "diagram", "draw the closed loop's block diagram (Graphviz: .svg, .png or .dot)"
     )
     diagram.add_argument("--out", required=True, help="output file: .svg, .png or .dot")
     diagram.set_defaults(handler=handlers["diagram"])
 
+
+def _add_stability(commands, handlers: Mapping[str, Callable]) -> None:
+    """`stability`: the linearized loop's report."""
     stability = _subcommand(
         commands,
         "stability",
@@ -140,6 +159,9 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     )
     stability.set_defaults(handler=handlers["stability"])
 
+
+def _add_compare(commands, handlers: Mapping[str, Callable]) -> None:
+    """`compare`: every force controller on one scenario."""
     compare = _subcommand(
         commands,
         "compare",
@@ -154,6 +176,9 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     compare.add_argument("--force", action="store_true", help=FORCE_HELP)
     compare.set_defaults(handler=handlers["compare"])
 
+
+def _add_grasp_compare(commands, handlers: Mapping[str, Callable]) -> None:
+    """`grasp-compare`: position-only fingers against the paper's law, over model errors."""
     grasp_compare = _subcommand(
         commands,
         "grasp-compare",
@@ -181,6 +206,9 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     grasp_compare.add_argument("--force", action="store_true", help=FORCE_HELP)
     grasp_compare.set_defaults(handler=handlers["grasp-compare"])
 
+
+def _add_bench(commands, handlers: Mapping[str, Callable]) -> None:
+    """`bench`: a scenario timed against the bare plant's floor."""
     bench = _subcommand(
         commands,
         "bench",
@@ -199,12 +227,31 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     )
     bench.set_defaults(handler=handlers["bench"])
 
+
+def _add_sweep(commands, handlers: Mapping[str, Callable]) -> None:
+    """`sweep`: a grid or Monte Carlo over scenario keys, its points and where they run."""
     sweep = _subcommand(
         commands,
         "sweep",
         "run a grid or Monte Carlo over scenario keys in parallel: one table, summary plots; "
         "an interrupted sweep resumes where it stopped",
     )
+    _add_sweep_points(sweep)
+    _add_sweep_engine(sweep)
+    sweep.add_argument(
+        "--out",
+        required=True,
+        metavar="DIR",
+        help="sweep folder: points.jsonl (the resumable record), table.csv, summary.txt, PNG",
+    )
+    sweep.add_argument(
+        "--force", action="store_true", help="start over in a folder of another sweep (or result)"
+    )
+    sweep.set_defaults(handler=handlers["sweep"])
+
+
+def _add_sweep_points(sweep: argparse.ArgumentParser) -> None:
+    """The sweep's points: --grid, --random, --samples, --seed."""
     sweep.add_argument(
         "--grid",
         action="append",
@@ -227,6 +274,10 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     sweep.add_argument(
         "--seed", type=int, default=0, metavar="S", help="seed of the draws (default 0)"
     )
+
+
+def _add_sweep_engine(sweep: argparse.ArgumentParser) -> None:
+    """Where the sweep's points run: --workers, --engine, --scheduler."""
     sweep.add_argument(
         "--workers",
         type=int,
@@ -244,18 +295,6 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
         metavar="ADDRESS",
         help="with --engine dask: the scheduler to use (default: start a LocalCluster)",
     )
-    sweep.add_argument(
-        "--out",
-        required=True,
-        metavar="DIR",
-        help="sweep folder: points.jsonl (the resumable record), table.csv, summary.txt, PNG",
-    )
-    sweep.add_argument(
-        "--force", action="store_true", help="start over in a folder of another sweep (or result)"
-    )
-    sweep.set_defaults(handler=handlers["sweep"])
-    _add_hardware_commands(commands, handlers)
-    return parser
 
 
 LCM_HELP = "LCM URL: memq:// (one process) or udpm://GROUP:PORT?ttl=0 (packets stay on this host)"
@@ -291,6 +330,3 @@ def _add_hardware_commands(commands, handlers: Mapping[str, Callable]) -> None:
         help="no simulation: publish the status and wrench at the robot's rate from a fixed "
         "posture and time the controller's answers (pacer.json)",
     )
-
-
-# --- main ---------------------------------------------------------------------------------
