@@ -131,6 +131,45 @@ def define_sweep(
     Raises:
         ScenarioError: (or its SweepError) one line naming the flag, key or point.
     """
+    grid_axes, random_axes = _parse_axes(grid, random, samples, seed)
+    # The base scenario and --set alone first: their errors read as in `admittance simulate`.
+    base = load_scenario(scenario, overrides)
+    set_values = parse_overrides(overrides)
+    file = scenario_file(scenario)
+    source = worker_source(scenario)
+    digest = hashlib.sha256(file.read_bytes()).hexdigest() if file is not None else ""
+    record = {
+        "scenario": base.name if file is None else file.stem,
+        "scenario_sha256": digest,
+        "set": list(overrides),
+    }
+    _check_each_axis(source, set_values, (*grid_axes, *random_axes), seed)
+    definition = SweepDefinition(
+        scenario=scenario,
+        scenario_name=record["scenario"],
+        scenario_source=source,
+        scenario_sha256=digest,
+        set_overrides=tuple(overrides),
+        set_values=tuple(set_values),
+        grid=grid_axes,
+        random=random_axes,
+        samples=samples,
+        seed=seed,
+        points=_expand_points(record, grid_axes, random_axes, samples, seed),
+    )
+    for point in definition.points:
+        try:
+            load_scenario(source, definition.overrides_of(point))
+        except ScenarioError as error:
+            raise SweepError(f"sweep point #{point.index} ({point.describe()}): {error}") from None
+    return definition
+
+
+def _parse_axes(
+    grid: Sequence[str], random: Sequence[str], samples: int | None, seed: int
+) -> tuple[tuple[GridAxis, ...], tuple[RandomAxis, ...]]:
+    """The axes of the flags, checked together: at least one, --samples with --random
+    only, at most MAX_POINTS points, a seed >= 0, no key swept twice."""
     grid_axes = tuple(parse_grid(text) for text in grid)
     random_axes = tuple(parse_random(text) for text in random)
     if not grid_axes and not random_axes:
@@ -155,20 +194,13 @@ def define_sweep(
         if axis.key in seen:
             raise SweepError(f"{axis.flag}: {axis.key} is already swept by {seen[axis.key]}")
         seen[axis.key] = axis.flag
+    return grid_axes, random_axes
 
-    # The base scenario and --set alone first: their errors read as in `admittance simulate`.
-    base = load_scenario(scenario, overrides)
-    set_values = parse_overrides(overrides)
-    file = scenario_file(scenario)
-    source = worker_source(scenario)
-    digest = hashlib.sha256(file.read_bytes()).hexdigest() if file is not None else ""
-    record = {
-        "scenario": base.name if file is None else file.stem,
-        "scenario_sha256": digest,
-        "set": list(overrides),
-    }
-    # Each swept key alone (its first value) names the flag in its error.
-    for axis in (*grid_axes, *random_axes):
+
+def _check_each_axis(source: str, set_values, axes, seed: int) -> None:
+    """Each swept key alone (its first value) on the base scenario and --set: its error
+    names the flag."""
+    for axis in axes:
         if isinstance(axis, GridAxis):
             trial = axis.values[0]
         else:
@@ -181,6 +213,16 @@ def define_sweep(
                 message = f"{message} (at {axis.key}={formatting.value(trial)})"
             raise SweepError(f"{axis.flag}: {message}") from None
 
+
+def _expand_points(
+    record: dict,
+    grid_axes: tuple[GridAxis, ...],
+    random_axes: tuple[RandomAxis, ...],
+    samples: int | None,
+    seed: int,
+) -> tuple[SweepPoint, ...]:
+    """Every point: the grid's Cartesian product, each combination with its `samples`
+    draws of the random axes (drawn once, in order, from one generator of `seed`)."""
     rng = np.random.default_rng(seed)
     draws = [axis.draw(rng, samples) for axis in random_axes]
     grid_points = list(itertools.product(*(axis.values for axis in grid_axes)))
@@ -194,22 +236,4 @@ def define_sweep(
                     point_values[axis.key] = drawn[sample]
             point_id = _point_id(record, point_values, sample)
             points.append(SweepPoint(len(points), point_id, point_values, sample))
-    definition = SweepDefinition(
-        scenario=scenario,
-        scenario_name=record["scenario"],
-        scenario_source=source,
-        scenario_sha256=digest,
-        set_overrides=tuple(overrides),
-        set_values=tuple(set_values),
-        grid=grid_axes,
-        random=random_axes,
-        samples=samples,
-        seed=seed,
-        points=tuple(points),
-    )
-    for point in points:
-        try:
-            load_scenario(source, definition.overrides_of(point))
-        except ScenarioError as error:
-            raise SweepError(f"sweep point #{point.index} ({point.describe()}): {error}") from None
-    return definition
+    return tuple(points)

@@ -93,69 +93,23 @@ def run_sweep(
     lock_was_there = (out_dir / LOCK_FILE).exists()
     start = time.perf_counter()
     with locked(out_dir):
-        try:
-            prepare_folder(definition, out_dir, force)
-        except SweepError:  # the folder changed since check_folder: leave it as it was
-            if not lock_was_there:
-                (out_dir / LOCK_FILE).unlink(missing_ok=True)
-            raise
+        _prepare(definition, out_dir, force, lock_was_there)
         points_path = out_dir / POINTS_FILE
-        rows, bad = read_points(points_path)
-        if bad:
-            rewrite_points(points_path, rows.values())
-            progress(f"ignored {bad} unreadable line(s) of {points_path} (a run killed mid-write)")
-        wanted = {point.point_id for point in definition.points}
-        done = {point_id for point_id in rows if point_id in wanted}
-        todo = [point for point in definition.points if point.point_id not in done]
-        total = len(definition.points)
-        if done:
-            progress(
-                f"resuming {out_dir}: skipped {len(done)} finished points of {total}; "
-                f"{len(todo)} to run"
-            )
+        rows, done, todo = _pending(definition, out_dir, progress)
         if todo:
             where = f"dask at {scheduler}" if scheduler else f"{engine}, {workers} workers"
             progress(f"running {len(todo)} points ({where})")
-        finished = len(done)
-        points_file = PointsFile(points_path)
-
-        def on_row(row: dict) -> None:
-            nonlocal finished
-            points_file.append(row)
-            rows[row["point_id"]] = row
-            finished += 1
-            metrics = row["metrics"]
-            outcome = (
-                f"FAILED: {row['failure']}"
-                if row["failed"]
-                else f"peak {number(metrics.get('peak_force'), ' N')}, steady-state error "
-                f"{number(metrics.get('steady_state_force_error'), ' N')}"
-            )
-            point = definition.points[row["index"]]
-            progress(
-                f"[{finished:{len(str(total))}d}/{total}] #{row['index']} ({point.describe()}) "
-                f"in {seconds(metrics.get('point_time'))}: {outcome}"
-            )
-
-        try:
-            with sigterm_interrupts():
-                run_tasks(
-                    run_point,
-                    [_task(definition, point) for point in todo],
-                    on_row,
-                    workers=workers,
-                    engine=engine,
-                    scheduler=scheduler,
-                    key=lambda task: task["point_id"],
-                )
-        except WorkerDiedError:
-            raise WorkerDiedError(
-                "a worker process died while running a point (killed, out of memory or "
-                f"crashed); the finished points are kept in {points_path}: run the same "
-                "command again to resume"
-            ) from None
-        finally:
-            points_file.close()
+        _run_points(
+            definition,
+            todo,
+            rows,
+            points_path,
+            finished=len(done),
+            progress=progress,
+            workers=workers,
+            engine=engine,
+            scheduler=scheduler,
+        )
         ours = [rows[point.point_id] for point in definition.points if point.point_id in rows]
         summary = summarize(definition, ours)
         table = out_dir / TABLE_FILE
@@ -165,7 +119,7 @@ def run_sweep(
         finish_folder(definition, out_dir)
     return SweepOutcome(
         out_dir=out_dir,
-        total=total,
+        total=len(definition.points),
         skipped=len(done),
         ran=len(todo),
         failed=sum(bool(r.get("failed")) for r in ours),
@@ -173,3 +127,95 @@ def run_sweep(
         summary=summary,
         files=[points_path, table, out_dir / SUMMARY_FILE, *plots],
     )
+
+
+def _prepare(definition: SweepDefinition, out_dir: Path, force: bool, lock_was_there: bool) -> None:
+    """The folder made this sweep's (under its lock); as it was if it changed meanwhile."""
+    try:
+        prepare_folder(definition, out_dir, force)
+    except SweepError:  # the folder changed since check_folder: leave it as it was
+        if not lock_was_there:
+            (out_dir / LOCK_FILE).unlink(missing_ok=True)
+        raise
+
+
+def _pending(
+    definition: SweepDefinition, out_dir: Path, progress: Callable[[str], None]
+) -> tuple[dict, set[str], list[SweepPoint]]:
+    """The rows of points.jsonl (its unreadable lines dropped), the ids of this sweep's
+    points among them, and the points still to run."""
+    points_path = out_dir / POINTS_FILE
+    rows, bad = read_points(points_path)
+    if bad:
+        rewrite_points(points_path, rows.values())
+        progress(f"ignored {bad} unreadable line(s) of {points_path} (a run killed mid-write)")
+    wanted = {point.point_id for point in definition.points}
+    done = {point_id for point_id in rows if point_id in wanted}
+    todo = [point for point in definition.points if point.point_id not in done]
+    total = len(definition.points)
+    if done:
+        progress(
+            f"resuming {out_dir}: skipped {len(done)} finished points of {total}; "
+            f"{len(todo)} to run"
+        )
+    return rows, done, todo
+
+
+def _point_line(definition: SweepDefinition, row: dict, finished: int) -> str:
+    """The progress line of a finished point: its place, values, time and outcome."""
+    total = len(definition.points)
+    metrics = row["metrics"]
+    outcome = (
+        f"FAILED: {row['failure']}"
+        if row["failed"]
+        else f"peak {number(metrics.get('peak_force'), ' N')}, steady-state error "
+        f"{number(metrics.get('steady_state_force_error'), ' N')}"
+    )
+    point = definition.points[row["index"]]
+    return (
+        f"[{finished:{len(str(total))}d}/{total}] #{row['index']} ({point.describe()}) "
+        f"in {seconds(metrics.get('point_time'))}: {outcome}"
+    )
+
+
+def _run_points(
+    definition: SweepDefinition,
+    todo: list[SweepPoint],
+    rows: dict,
+    points_path: Path,
+    *,
+    finished: int,
+    progress: Callable[[str], None],
+    workers: int,
+    engine: str,
+    scheduler: str | None,
+) -> None:
+    """Runs `todo`, each finished row appended to points.jsonl and put in `rows`."""
+    points_file = PointsFile(points_path)
+
+    def on_row(row: dict) -> None:
+        nonlocal finished
+        points_file.append(row)
+        rows[row["point_id"]] = row
+        finished += 1
+        progress(_point_line(definition, row, finished))
+
+    try:
+        with sigterm_interrupts():
+            run_tasks(
+                run_point,
+                [_task(definition, point) for point in todo],
+                on_row,
+                workers=workers,
+                engine=engine,
+                scheduler=scheduler,
+                key=lambda task: task["point_id"],
+            )
+    except WorkerDiedError:
+        raise WorkerDiedError(
+            "a worker process died while running a point (killed, out of memory or "
+            f"crashed); the finished points are kept in {points_path}: run the same "
+            "command again to resume"
+        ) from None
+    finally:
+        points_file.close()

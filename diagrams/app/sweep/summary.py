@@ -144,10 +144,29 @@ def summarize(definition: SweepDefinition, rows: Sequence[Mapping], worst: int =
     """The sweep's summary: counts, failures, where tracking degrades, the worst points."""
     keys = definition.keys
     rows = sorted(rows, key=lambda r: r["index"])
-    total = len(definition.points)
     failed = [r for r in rows if r.get("failed")]
     finished = [r for r in rows if not r.get("failed")]
     degraded_rows = [r for r in rows if degraded(r)]
+    lines = _count_lines(definition, rows, failed)
+    if finished:
+        lines += _spread_lines(finished)
+    percent = number(100 * DEGRADED_FRACTION, " %")
+    lines.append(
+        f"  tracking degrades (steady-state force error > {percent} of Fr, or failed) at "
+        f"{len(degraded_rows)} of {len(rows)} points"
+    )
+    lines += _by_key_lines(definition, rows)
+    lines += _worst_lines(degraded_rows, finished, keys, worst)
+    if failed:
+        lines += _failed_lines(failed, keys)
+    return "\n".join(lines) + "\n"
+
+
+def _count_lines(
+    definition: SweepDefinition, rows: Sequence[Mapping], failed: Sequence[Mapping]
+) -> list[str]:
+    """The sweep, how many of its points finished and failed, and their compute time."""
+    total = len(definition.points)
     lines = [
         f"sweep {definition.describe()}",
         f"  {total} points, {len(rows)} finished, {len(failed)} failed"
@@ -160,46 +179,53 @@ def summarize(definition: SweepDefinition, rows: Sequence[Mapping], worst: int =
             f"  compute: {seconds(sum(times))} in all, median {seconds(statistics.median(times))} "
             f"per point, longest {seconds(max(times))}"
         )
-    if finished:
-        lines.append("  over the points that ran (min / median / max):")
-        for name, unit in (
-            ("peak_force", " N"),
-            ("steady_state_force_error", " N"),
-            ("rms_force_error", " N"),
-            ("mean_abs_force_error_settled", " N"),
-            ("contact_losses", ""),
-            ("settling_first_contact_0", " s"),
-            ("force_min_while_wall_moves", " N"),
-            ("force_max_while_wall_moves", " N"),
-        ):
-            values = [as_number(r["metrics"].get(name)) for r in finished]
-            values = [v for v in values if v is not None]
-            if values:
-                lines.append(
-                    f"    {name:30s} {number(min(values), unit)} / "
-                    f"{number(statistics.median(values), unit)} / {number(max(values), unit)}"
-                )
-        losses = [r for r in finished if (as_number(r["metrics"].get("contact_losses")) or 0) > 0]
-        unsettled = [
-            r
-            for r in finished
-            if any(
-                k.startswith("settling_") and v is None and not k.startswith("settling_wall_starts")
-                for k, v in r["metrics"].items()
+    return lines
+
+
+def _spread_lines(finished: Sequence[Mapping]) -> list[str]:
+    """Min / median / max of the main metrics over the points that ran; contact losses and
+    points that did not settle."""
+    lines = ["  over the points that ran (min / median / max):"]
+    for name, unit in (
+        ("peak_force", " N"),
+        ("steady_state_force_error", " N"),
+        ("rms_force_error", " N"),
+        ("mean_abs_force_error_settled", " N"),
+        ("contact_losses", ""),
+        ("settling_first_contact_0", " s"),
+        ("force_min_while_wall_moves", " N"),
+        ("force_max_while_wall_moves", " N"),
+    ):
+        values = [as_number(r["metrics"].get(name)) for r in finished]
+        values = [v for v in values if v is not None]
+        if values:
+            lines.append(
+                f"    {name:30s} {number(min(values), unit)} / "
+                f"{number(statistics.median(values), unit)} / {number(max(values), unit)}"
             )
-        ]
-        lines.append(
-            f"  contact lost at {len(losses)} points; not settled within 5 % of Fr after an "
-            f"event (wall_starts excepted: a moving wall leaves a ramp error) at "
-            f"{len(unsettled)} points"
+    losses = [r for r in finished if (as_number(r["metrics"].get("contact_losses")) or 0) > 0]
+    unsettled = [
+        r
+        for r in finished
+        if any(
+            k.startswith("settling_") and v is None and not k.startswith("settling_wall_starts")
+            for k, v in r["metrics"].items()
         )
-    percent = number(100 * DEGRADED_FRACTION, " %")
+    ]
     lines.append(
-        f"  tracking degrades (steady-state force error > {percent} of Fr, or failed) at "
-        f"{len(degraded_rows)} of {len(rows)} points"
+        f"  contact lost at {len(losses)} points; not settled within 5 % of Fr after an "
+        f"event (wall_starts excepted: a moving wall leaves a ramp error) at "
+        f"{len(unsettled)} points"
     )
+    return lines
+
+
+def _by_key_lines(definition: SweepDefinition, rows: Sequence[Mapping]) -> list[str]:
+    """Per swept key, a table of its values (or ranges of them): points, degraded, failed,
+    median error, max peak, contact lost (and the least force while a wall moves)."""
+    lines = []
     moving = any("force_min_while_wall_moves" in r.get("metrics", {}) for r in rows)
-    for key in keys:
+    for key in definition.keys:
         values = [r.get("values", {}).get(key) for r in rows]
         header = (
             f"    {'by ' + key:34s} points degraded failed  median ss error  max peak  contact lost"
@@ -209,6 +235,18 @@ def summarize(definition: SweepDefinition, rows: Sequence[Mapping], worst: int =
             members = [r for r in rows if inside(r.get("values", {}).get(key))]
             if members:
                 lines.append(_bin_line(label, members, moving))
+    return lines
+
+
+def _worst_lines(
+    degraded_rows: Sequence[Mapping],
+    finished: Sequence[Mapping],
+    keys: Sequence[str],
+    worst: int,
+) -> list[str]:
+    """The `worst` points by steady-state force error (of the degraded ones that ran), by
+    peak force and by RMS force error."""
+    lines = []
     shown = [r for r in degraded_rows if not r.get("failed")]
     shown.sort(key=lambda r: -(as_number(r["metrics"].get("steady_state_force_error")) or 0))
     if shown:
@@ -227,10 +265,14 @@ def summarize(definition: SweepDefinition, rows: Sequence[Mapping], worst: int =
             lines.append(f"  the worst {title}:")
             for row in ranked[:worst]:
                 lines.append(f"    {_point_label(row, keys)}: {number(row['metrics'][name], ' N')}")
-    if failed:
-        lines.append("  failed points:")
-        for row in failed[:10]:
-            lines.append(f"    {_point_label(row, keys)}: {row.get('failure')}")
-        if len(failed) > 10:
-            lines.append(f"    ... and {len(failed) - 10} more (table.csv, column failure)")
-    return "\n".join(lines) + "\n"
+    return lines
+
+
+def _failed_lines(failed: Sequence[Mapping], keys: Sequence[str]) -> list[str]:
+    """The first ten failed points and their failures."""
+    lines = ["  failed points:"]
+    for row in failed[:10]:
+        lines.append(f"    {_point_label(row, keys)}: {row.get('failure')}")
+    if len(failed) > 10:
+        lines.append(f"    ... and {len(failed) - 10} more (table.csv, column failure)")
+    return lines
