@@ -1,9 +1,10 @@
-"""The report of ``admittance bench`` for people: a table, and an earlier run beside it.
+"""The file of ``admittance bench --json``: an earlier bench report is replaced (no
+--force needed), nothing else ever is.
 
-``format_benchmark(report, before)`` renders a ``bench.run_benchmark`` report as a readable
-table; given the report of an earlier run (``--before FILE``, read by
-``load_benchmark_report``: the same scenario on other code, measured the same day), it also
-prints both side by side, the per-callback profile included.
+The benchmark and its report for people are each robot's: ``run_benchmark`` in
+``robots.planar_arm.bench`` and ``format_benchmark`` (with ``load_benchmark_report`` for
+``--before FILE``) in ``robots.planar_arm.bench_report``; the spatial arm's in
+``robots.spatial_arm.bench``.
 """
 
 from __future__ import annotations
@@ -17,8 +18,6 @@ from admittance.diagrams.results.folder import check_output_file
 __all__ = [
     "check_bench_file",
 ]
-
-# --- the table --------------------------------------------------------------------------
 
 
 def _is_bench_report(path: Path) -> bool:

@@ -120,13 +120,26 @@ def _format_before(report: dict, before: dict) -> list[str]:
 
 def format_benchmark(report: dict, before: dict | None = None) -> str:
     """A readable table of a ``run_benchmark`` report (and of an earlier one beside it)."""
+    lines = _header_lines(report)
+    lines += _table_lines(report["closed_loop"], report["floor"])
+    lines += _ratio_lines(report)
+    lines += _python_lines(report["python"])
+    lines += _logging_lines(report)
+    lines += _memory_lines(report)
+    if before is not None:
+        lines += _format_before(report, before)
+    environment = report["environment"]
+    lines.append(
+        f"Python {environment['python']}, drake {environment['drake']}, "
+        f"{environment['cpu_count']} CPUs, {environment['platform']}"
+    )
+    return "\n".join(lines)
+
+
+def _header_lines(report: dict) -> list[str]:
+    """What was timed, and the table's heading."""
     scenario = report["scenario"]
-    loop = report["closed_loop"]
-    floor = report["floor"]
-    python = report["python"]
-    integrator = loop["integrator"]
-    memory = report["memory"]
-    lines = [
+    return [
         f"Benchmark of {scenario['name']}: {number(scenario['duration'], ' s')} simulated, sensor "
         f"{scenario['sensor']}, {scenario['integration_scheme']} accuracy "
         f"{number(scenario['accuracy'])}, max step {number(scenario['max_step_size'], ' s')}, "
@@ -134,6 +147,11 @@ def format_benchmark(report: dict, before: dict | None = None) -> str:
         "",
         f"{'':34}{'closed loop':>22}{'floor (bare arm)':>22}",
     ]
+
+
+def _table_lines(loop: dict, floor: dict) -> list[str]:
+    """The closed loop and the floor side by side: times, steps, evaluations."""
+    lines = []
 
     def row(label: str, closed: str, bare: str = "") -> None:
         lines.append(f"{label:34}{closed:>22}{bare:>22}")
@@ -177,7 +195,15 @@ def format_benchmark(report: dict, before: dict | None = None) -> str:
         seconds(1e-6 * floor_per_evaluation) if floor_per_evaluation is not None else seconds(None),
     )
     row("build time (excluded)", seconds(loop["build_time"]))
-    lines += [
+    return lines
+
+
+def _ratio_lines(report: dict) -> list[str]:
+    """The closed loop over the floor, the integrator's work, one evaluation alone, and
+    a warning if the runs took different steps."""
+    loop, floor = report["closed_loop"], report["floor"]
+    integrator = loop["integrator"]
+    lines = [
         "",
         f"closed loop / floor: {number(report['ratio_to_floor'])} x in wall time, "
         f"{number(report['per_evaluation_ratio_to_floor'])} x per derivative evaluation "
@@ -203,8 +229,13 @@ def format_benchmark(report: dict, before: dict | None = None) -> str:
         )
     if not loop["deterministic"]:
         lines.append("warning: the runs did not take the same steps (non-deterministic loop)")
+    return lines
+
+
+def _python_lines(python: dict) -> list[str]:
+    """The profiling run's Python callbacks: totals, then one row per callback."""
     fraction = python["fraction_of_wall_time"]
-    lines += [
+    lines = [
         "",
         f"Python callbacks (separate profiling run, {seconds(python['profiled_wall_time'])}): "
         f"{number(python['callback_calls'])} calls, "
@@ -223,8 +254,13 @@ def format_benchmark(report: dict, before: dict | None = None) -> str:
             f"{number(entry['per_derivative_evaluation']):>10}"
             f"{seconds(entry['time']):>10}{seconds(1e-6 * entry['mean_us']):>10}"
         )
-    timed = loop["wall_time"]
-    lines += [
+    return lines
+
+
+def _logging_lines(report: dict) -> list[str]:
+    """The timed median against the run with the other logging setting."""
+    timed = report["closed_loop"]["wall_time"]
+    lines = [
         "",
         f"logging (one run each; the timed runs ranged {seconds(timed['min'])} to "
         f"{seconds(timed['max'])}):",
@@ -236,18 +272,16 @@ def format_benchmark(report: dict, before: dict | None = None) -> str:
             f"{number(entry['integrator_steps']):>10} steps"
             + (f"  ({_signed_percent(relative - 1)} vs timed median)" if relative else "")
         )
-    lines += [
+    return lines
+
+
+def _memory_lines(report: dict) -> list[str]:
+    """The process's peak memory and the warm-up's force check."""
+    memory, loop = report["memory"], report["closed_loop"]
+    return [
         "",
         f"memory: peak RSS {number(memory['peak_rss_mb'], ' MB')} (process), Python allocations "
         f"peak {number(memory['python_peak_mb'], ' MB')} (tracemalloc, warm-up run)",
         f"force check (warm-up): peak {number(loop['peak_force'])} N, contact losses "
         f"{number(loop['contact_losses'])}",
     ]
-    if before is not None:
-        lines += _format_before(report, before)
-    environment = report["environment"]
-    lines.append(
-        f"Python {environment['python']}, drake {environment['drake']}, "
-        f"{environment['cpu_count']} CPUs, {environment['platform']}"
-    )
-    return "\n".join(lines)
