@@ -14,6 +14,7 @@ import shutil
 import subprocess
 import sys
 import sysconfig
+from dataclasses import dataclass
 from pathlib import Path
 
 from pydrake.systems.framework import (
@@ -87,25 +88,68 @@ def readable_graphviz(diagram: Diagram) -> str:
     """
     connections = diagram.connection_map()  # (system, input index) -> (system, output index)
     systems = [s for s in diagram.GetSystems() if _class_name(s) not in _RECORDER_CLASSES]
-    kept = {id(s) for s in systems}
-    inputs_used = {(id(s), int(i)) for (s, i) in connections}
-    outputs_used = {(id(s), int(i)) for (t, _), (s, i) in connections.items() if id(t) in kept}
-    exported_inputs = [
-        (index, diagram.GetInputPortLocators(InputPortIndex(index)))
-        for index in range(diagram.num_input_ports())
+    ports = _Ports.of(diagram, connections, systems)
+    order, edges = _layout(systems, connections, ports.exported_inputs)
+    node = {id(s): f"s{k}" for k, s in enumerate(order)}
+    lines = [
+        "digraph loop {",
+        "rankdir=TB",
+        "nodesep=0.25",
+        "ranksep=0.35",
+        f"label=<<B>{html.escape(diagram.get_name())}</B>>",
+        "labelloc=t",
+        # A monospaced font: every renderer's substitute (Courier, DejaVu Sans Mono, Liberation
+        # Mono, Menlo) has the 0.6 em advance Graphviz sized the boxes with.
+        'fontname="Courier"',
+        'node [shape=plaintext, fontname="Courier", fontsize=11]',
+        "edge [arrowsize=0.7]",
     ]
-    for _, locators in exported_inputs:
-        inputs_used.update((id(s), int(i)) for s, i in locators)
-    exported_outputs = [
-        (index, diagram.get_output_port_locator(OutputPortIndex(index)))
-        for index in range(diagram.num_output_ports())
-    ]
-    outputs_used.update((id(s), int(i)) for _, (s, i) in exported_outputs)
+    lines += [f"{node[id(system)]} [label=<{_node_table(system, ports)}>];" for system in order]
+    for tail, tail_index, head, head_index in edges:
+        lines.append(f"{node[id(tail)]}:y{tail_index}:s -> {node[id(head)]}:u{head_index}:n;")
+    lines += _exported_port_lines(diagram, ports, node)
+    lines.append("}")
+    return "\n".join(lines) + "\n"
 
-    # Sources first, then breadth-first along the connections in the order of the ports:
-    # Graphviz breaks the loop's cycles against the order in which it meets nodes and edges,
-    # so the first output of a block leads (Xd into the commanded position before dXd/dt into
-    # the PID) and the forward path comes out downwards.
+
+@dataclass
+class _Ports:
+    """The ports the picture draws: (id(system), index) of the connected inputs and outputs
+    (the diagram's exported ones included), and the exported ports' locators."""
+
+    inputs_used: set
+    outputs_used: set
+    exported_inputs: list
+    exported_outputs: list
+
+    @classmethod
+    def of(cls, diagram: Diagram, connections, systems: list) -> _Ports:
+        kept = {id(s) for s in systems}
+        inputs_used = {(id(s), int(i)) for (s, i) in connections}
+        outputs_used = {(id(s), int(i)) for (t, _), (s, i) in connections.items() if id(t) in kept}
+        exported_inputs = [
+            (index, diagram.GetInputPortLocators(InputPortIndex(index)))
+            for index in range(diagram.num_input_ports())
+        ]
+        for _, locators in exported_inputs:
+            inputs_used.update((id(s), int(i)) for s, i in locators)
+        exported_outputs = [
+            (index, diagram.get_output_port_locator(OutputPortIndex(index)))
+            for index in range(diagram.num_output_ports())
+        ]
+        outputs_used.update((id(s), int(i)) for _, (s, i) in exported_outputs)
+        return cls(inputs_used, outputs_used, exported_inputs, exported_outputs)
+
+
+def _layout(systems: list, connections, exported_inputs: list) -> tuple[list, list]:
+    """The subsystems in drawing order and the connections between them, sorted.
+
+    Sources first, then breadth-first along the connections in the order of the ports:
+    Graphviz breaks the loop's cycles against the order in which it meets nodes and edges,
+    so the first output of a block leads (Xd into the commanded position before dXd/dt into
+    the PID) and the forward path comes out downwards.
+    """
+    kept = {id(s) for s in systems}
     position = {id(s): k for k, s in enumerate(systems)}
     edges = sorted(
         (
@@ -128,57 +172,47 @@ def readable_graphviz(diagram: Diagram) -> str:
     order += [s for s in systems if id(s) not in placed]
     rank = {id(s): k for k, s in enumerate(order)}
     edges.sort(key=lambda e: (rank[id(e[0])], e[1], rank[id(e[2])], e[3]))
-    node = {id(s): f"s{k}" for k, s in enumerate(order)}
+    return order, edges
 
-    lines = [
-        "digraph loop {",
-        "rankdir=TB",
-        "nodesep=0.25",
-        "ranksep=0.35",
-        f"label=<<B>{html.escape(diagram.get_name())}</B>>",
-        "labelloc=t",
-        # A monospaced font: every renderer's substitute (Courier, DejaVu Sans Mono, Liberation
-        # Mono, Menlo) has the 0.6 em advance Graphviz sized the boxes with.
-        'fontname="Courier"',
-        'node [shape=plaintext, fontname="Courier", fontsize=11]',
-        "edge [arrowsize=0.7]",
+
+def _node_table(system: System, ports: _Ports) -> str:
+    """A subsystem's label: its connected inputs along the top, its name over its class
+    (and how many ports are left out), its connected outputs along the bottom."""
+    ins = [i for i in range(system.num_input_ports()) if (id(system), i) in ports.inputs_used]
+    outs = [i for i in range(system.num_output_ports()) if (id(system), i) in ports.outputs_used]
+    hidden = system.num_input_ports() + system.num_output_ports() - len(ins) - len(outs)
+    rows = [
+        f'<TR><TD><FONT POINT-SIZE="12"><B>{html.escape(system.get_name())}</B></FONT></TD></TR>',
+        f'<TR><TD><FONT POINT-SIZE="9" COLOR="#555555">{html.escape(_class_name(system))}'
+        "</FONT></TD></TR>",
     ]
-    for system in order:
-        ins = [i for i in range(system.num_input_ports()) if (id(system), i) in inputs_used]
-        outs = [i for i in range(system.num_output_ports()) if (id(system), i) in outputs_used]
-        hidden = system.num_input_ports() + system.num_output_ports() - len(ins) - len(outs)
-        rows = [
-            f'<TR><TD><FONT POINT-SIZE="12"><B>{html.escape(system.get_name())}</B></FONT>'
-            "</TD></TR>",
-            f'<TR><TD><FONT POINT-SIZE="9" COLOR="#555555">{html.escape(_class_name(system))}'
-            "</FONT></TD></TR>",
-        ]
-        if hidden:
-            rows.append(
-                f'<TR><TD><FONT POINT-SIZE="9" COLOR="#777777">{hidden} unconnected ports not '
-                "shown</FONT></TD></TR>"
-            )
-        title = (
-            '<TR><TD BORDER="0"><TABLE BORDER="1" CELLBORDER="0" CELLSPACING="0" '
-            f'CELLPADDING="2" BGCOLOR="#e8eef7">{"".join(rows)}</TABLE></TD></TR>'
+    if hidden:
+        rows.append(
+            f'<TR><TD><FONT POINT-SIZE="9" COLOR="#777777">{hidden} unconnected ports not '
+            "shown</FONT></TD></TR>"
         )
-        table = (
-            '<TABLE BORDER="0" CELLBORDER="0" CELLSPACING="0" CELLPADDING="0">'
-            f"{_port_row(system, 'u', ins)}{title}{_port_row(system, 'y', outs)}</TABLE>"
-        )
-        lines.append(f"{node[id(system)]} [label=<{table}>];")
-    for tail, tail_index, head, head_index in edges:
-        lines.append(f"{node[id(tail)]}:y{tail_index}:s -> {node[id(head)]}:u{head_index}:n;")
-    for index, locators in exported_inputs:
+    title = (
+        '<TR><TD BORDER="0"><TABLE BORDER="1" CELLBORDER="0" CELLSPACING="0" '
+        f'CELLPADDING="2" BGCOLOR="#e8eef7">{"".join(rows)}</TABLE></TD></TR>'
+    )
+    return (
+        '<TABLE BORDER="0" CELLBORDER="0" CELLSPACING="0" CELLPADDING="0">'
+        f"{_port_row(system, 'u', ins)}{title}{_port_row(system, 'y', outs)}</TABLE>"
+    )
+
+
+def _exported_port_lines(diagram: Diagram, ports: _Ports, node: dict) -> list[str]:
+    """The diagram's own input and output ports as ellipses, with their arrows."""
+    lines = []
+    for index, locators in ports.exported_inputs:
         name = html.escape(diagram.get_input_port(index).get_name())
         lines.append(f'in{index} [shape=ellipse, label="{name}", fontsize=11];')
         lines += [f"in{index} -> {node[id(s)]}:u{int(i)}:n;" for s, i in locators]
-    for index, (system, port_index) in exported_outputs:
+    for index, (system, port_index) in ports.exported_outputs:
         name = html.escape(diagram.get_output_port(index).get_name())
         lines.append(f'out{index} [shape=ellipse, label="{name}", fontsize=11];')
         lines.append(f"{node[id(system)]}:y{int(port_index)}:s -> out{index};")
-    lines.append("}")
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def _graphviz_command() -> str | None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -87,32 +88,63 @@ def write_meshcat_replay(result: SimulationResult, path: str | os.PathLike) -> P
         The path written.
     """
     path = Path(path)
-    scenario = result.scenario
     times, joint_positions = replay_frames(result)
-    tip_xy = interpolate(result.time, result.pose[:, :2], times)
-    wall_position = interpolate(result.time, result.wall_position, times)
-    force = np.maximum(interpolate(result.time, result.force, times), 0.0)
-    commanded_xy = interpolate(
-        result.time, (result.desired_position + result.reference_offset)[:, :2], times
-    )
-    meters_per_newton = arrow_scale(force, FORCE_ARROW_METERS_PER_NEWTON, FORCE_ARROW_MAX_LENGTH)
-    arrow_length = force * meters_per_newton
-    reference_length = scenario.force_reference * meters_per_newton
-
+    tracks = _Tracks.of(result, times)
     builder = DiagramBuilder()
-    replay = Replay(builder, *AddScenarioArm(builder, scenario.arm))
+    replay = Replay(builder, *AddScenarioArm(builder, result.scenario.arm))
+    bounds = _view_bounds(replay, tracks, joint_positions)
+    draw_overlays = _add_overlays(replay.meshcat, tracks, bounds)
+    replay.record(times, joint_positions, draw_overlays)
+    # Camera above the plane looking down -z (its +y axis) with world +y up (its +z axis):
+    # its x axis is then world +x, drawn to the right.
+    X_WC = RigidTransform(RotationMatrix.MakeXRotation(-math.pi / 2), [0.0, 0.0, 1.0])
+    return replay.write(path, X_WC, bounds)
+
+
+@dataclass
+class _Tracks:
+    """What the overlays follow, at the replay's frames: the fingertip's and the commanded
+    position's x-y, the wall's face, the arrow's length and Fr's on the same scale."""
+
+    tip_xy: np.ndarray
+    commanded_xy: np.ndarray
+    wall_position: np.ndarray
+    arrow_length: np.ndarray
+    reference_length: float
+
+    @classmethod
+    def of(cls, result: SimulationResult, times: np.ndarray) -> _Tracks:
+        force = np.maximum(interpolate(result.time, result.force, times), 0.0)
+        meters_per_newton = arrow_scale(
+            force, FORCE_ARROW_METERS_PER_NEWTON, FORCE_ARROW_MAX_LENGTH
+        )
+        return cls(
+            tip_xy=interpolate(result.time, result.pose[:, :2], times),
+            commanded_xy=interpolate(
+                result.time, (result.desired_position + result.reference_offset)[:, :2], times
+            ),
+            wall_position=interpolate(result.time, result.wall_position, times),
+            arrow_length=force * meters_per_newton,
+            reference_length=result.scenario.force_reference * meters_per_newton,
+        )
+
+
+def _view_bounds(replay: Replay, tracks: _Tracks, joint_positions: np.ndarray) -> tuple:
+    """(xmin, xmax, ymin, ymax) around everything drawn: every body of the arm over the
+    run, the wall's face, the longest arrow and the commanded position."""
     plant = replay.plant
-
-    # Fit the view around everything drawn: every body of the arm over the run, the wall's
-    # face, the longest arrow and the commanded position.
+    tip_xy = tracks.tip_xy
     bodies = [plant.get_body(BodyIndex(index)) for index in range(1, plant.num_bodies())]
-    points = [tip_xy, commanded_xy, np.column_stack([wall_position, tip_xy[:, 1]])]
-    points.append(np.column_stack([tip_xy[:, 0] + arrow_length, tip_xy[:, 1]]))
+    points = [tip_xy, tracks.commanded_xy, np.column_stack([tracks.wall_position, tip_xy[:, 1]])]
+    points.append(np.column_stack([tip_xy[:, 0] + tracks.arrow_length, tip_xy[:, 1]]))
     points.append(replay.body_positions(joint_positions, bodies)[:, :2])
-    xmin, xmax, ymin, ymax = view_bounds(np.vstack(points))
+    return view_bounds(np.vstack(points))
 
-    # The overlays; their poses are animated below. The wall spans the view's height.
-    meshcat = replay.meshcat
+
+def _add_overlays(meshcat, tracks: _Tracks, bounds: tuple):
+    """Adds the wall (spanning the view's height), the force arrow, Fr's tick and the
+    commanded position's dot; returns what poses them at each frame."""
+    xmin, xmax, ymin, ymax = bounds
     wall_height = (ymax - ymin) + 2.0 * VIEW_MARGIN
     meshcat.SetObject(WALL_PATH, Box(WALL_THICKNESS, wall_height, 0.02), _WALL_COLOR)
     # The arrow points along +x, the direction of the force the fingertip applies to the wall.
@@ -125,24 +157,22 @@ def write_meshcat_replay(result: SimulationResult, path: str | os.PathLike) -> P
     wall_y = 0.5 * (ymin + ymax)
 
     def draw_overlays(animation, frame: int, index: int) -> None:
-        tip, xc = tip_xy[index], commanded_xy[index]
+        tip, xc = tracks.tip_xy[index], tracks.commanded_xy[index]
         animation.SetTransform(
             frame,
             WALL_PATH,
-            RigidTransform([wall_position[index] + 0.5 * WALL_THICKNESS, wall_y, WALL_Z]),
+            RigidTransform([tracks.wall_position[index] + 0.5 * WALL_THICKNESS, wall_y, WALL_Z]),
         )
-        arrow.animate(animation, frame, np.array([tip[0], tip[1], FORCE_Z]), arrow_length[index])
+        arrow.animate(
+            animation, frame, np.array([tip[0], tip[1], FORCE_Z]), tracks.arrow_length[index]
+        )
         animation.SetTransform(
             frame,
             FORCE_REFERENCE_PATH,
-            RigidTransform([tip[0] + reference_length, tip[1], FORCE_Z + 0.001]),
+            RigidTransform([tip[0] + tracks.reference_length, tip[1], FORCE_Z + 0.001]),
         )
         animation.SetTransform(
             frame, COMMANDED_PATH, RigidTransform([xc[0], xc[1], FORCE_Z - 0.002])
         )
 
-    replay.record(times, joint_positions, draw_overlays)
-    # Camera above the plane looking down -z (its +y axis) with world +y up (its +z axis):
-    # its x axis is then world +x, drawn to the right.
-    X_WC = RigidTransform(RotationMatrix.MakeXRotation(-math.pi / 2), [0.0, 0.0, 1.0])
-    return replay.write(path, X_WC, (xmin, xmax, ymin, ymax))
+    return draw_overlays
