@@ -142,6 +142,20 @@ def analyse(
         progress("the sampled loop with its latency: critical Gamma and tolerable latency")
         summary["sampled"] = sampled_margins(scenario)
         scenario = continuous_counterpart(scenario)
+    _linearize(scenario, summary, progress)
+    step = _step_comparison(scenario, summary, progress)
+    _critical(scenario, summary, progress)
+    maps = _maps(scenario, run_scenario_as_given, "sampled" in summary, axes, progress)
+    if scenario.safety.enabled:
+        summary["safety"] = _safety_layer(scenario, maps, axes, progress)
+    trajectory = None
+    if with_trajectory:
+        trajectory = _trajectory(run_scenario_as_given, summary, progress)
+    return StabilityReport(run_scenario_as_given, summary, maps, axes, trajectory, step)
+
+
+def _linearize(scenario: Scenario, summary: dict, progress: Callable[[str], None]) -> None:
+    """Eq. 13, the contact equilibrium and the linearized loop's modes and certificate."""
     progress("eq. 13 symbolically; the contact equilibrium and the linearized loop")
     summary["eq13"] = symbolic_eq13()
     equilibrium = FindContactEquilibrium(scenario)
@@ -155,6 +169,9 @@ def analyse(
     certificate.pop("P", None)
     summary["lyapunov"] = certificate
 
+
+def _step_comparison(scenario: Scenario, summary: dict, progress: Callable[[str], None]):
+    """A 0.1 N step of Fr, linear against nonlinear; returns the two responses."""
     progress("a 0.1 N step of Fr, linear against nonlinear")
     step = linear_versus_nonlinear(scenario, step=0.1)
     summary["linear_versus_nonlinear"] = {
@@ -162,7 +179,11 @@ def analyse(
         "max_difference_N": float(np.max(np.abs(step.linear - step.nonlinear))),
         "relative_to_step": float(np.max(np.abs(step.linear - step.nonlinear)) / 0.1),
     }
+    return step
 
+
+def _critical(scenario: Scenario, summary: dict, progress: Callable[[str], None]) -> None:
+    """The critical Gamma, its margin, and a nonlinear run on either side of it."""
     progress("the critical Gamma, and a simulation on either side of it")
     gamma_critical = critical_gamma(scenario)
     summary["critical_gamma"] = gamma_critical
@@ -174,6 +195,15 @@ def analyse(
             "above": simulate_near_critical(scenario, 1.25 * gamma_critical),
         }
 
+
+def _maps(
+    scenario: Scenario,
+    run_scenario_as_given: Scenario,
+    sampled: bool,
+    axes: MapAxes,
+    progress: Callable[[str], None],
+) -> dict[str, np.ndarray]:
+    """The stability maps that apply (and the sampled loop's, for a sampled controller)."""
     maps = {}
     applicable = _maps_of(scenario)
     for index, (name, (key, axis, _, overrides)) in enumerate(applicable.items(), start=1):
@@ -181,34 +211,37 @@ def analyse(
         progress(f"stability map {index} of {len(applicable)}: {name} ({size} linearizations)")
         base = with_values(scenario, overrides) if overrides else scenario
         maps[name] = stability_map(base, "admittance.gamma", axes.gamma, key, getattr(axes, axis))
-    if "sampled" in summary:
+    if sampled:
         maps[SAMPLED_MAP] = sampled_stability_map(run_scenario_as_given, axes.gamma, axes.stiffness)
-    if scenario.safety.enabled:
-        progress("the safety layer: nonlinear runs at the corners of its map over Ke")
-        edges = (float(axes.stiffness[0]), float(axes.stiffness[-1]))
-        summary["safety"] = {
-            "unstable_points_with_layer": unstable_points(maps["gamma_vs_stiffness"]),
-            "unstable_points_without_layer": unstable_points(
-                maps["gamma_vs_stiffness_without_safety"]
-            ),
-            "map_points": int(maps["gamma_vs_stiffness"].size),
-            "edges": edge_confirmations(
-                scenario, edges, (float(axes.gamma[0]), float(axes.gamma[-1]))
-            ),
-        }
+    return maps
 
-    trajectory = None
-    if with_trajectory:
-        progress(f"V(t) along a simulated run of {number(scenario.duration, ' s')}")
-        result = run_scenario(run_scenario_as_given)
-        trajectory = lyapunov_along_trajectory(result)
-        summary["lyapunov_along_trajectory"] = {
-            "monotone_after_contact": trajectory["monotone_after_contact"],
-            "growing_fraction": trajectory["growing_fraction"],
-            "growing_intervals": trajectory["growing_intervals"][:50],
-            "growing_intervals_total": len(trajectory["growing_intervals"]),
-        }
-    return StabilityReport(run_scenario_as_given, summary, maps, axes, trajectory, step)
+
+def _safety_layer(
+    scenario: Scenario, maps: dict, axes: MapAxes, progress: Callable[[str], None]
+) -> dict:
+    """The safety layer's map against the paper's law's, and nonlinear runs at its corners."""
+    progress("the safety layer: nonlinear runs at the corners of its map over Ke")
+    edges = (float(axes.stiffness[0]), float(axes.stiffness[-1]))
+    return {
+        "unstable_points_with_layer": unstable_points(maps["gamma_vs_stiffness"]),
+        "unstable_points_without_layer": unstable_points(maps["gamma_vs_stiffness_without_safety"]),
+        "map_points": int(maps["gamma_vs_stiffness"].size),
+        "edges": edge_confirmations(scenario, edges, (float(axes.gamma[0]), float(axes.gamma[-1]))),
+    }
+
+
+def _trajectory(scenario: Scenario, summary: dict, progress: Callable[[str], None]) -> dict:
+    """V(t) along a simulated run of the scenario as given."""
+    progress(f"V(t) along a simulated run of {number(scenario.duration, ' s')}")
+    result = run_scenario(scenario)
+    trajectory = lyapunov_along_trajectory(result)
+    summary["lyapunov_along_trajectory"] = {
+        "monotone_after_contact": trajectory["monotone_after_contact"],
+        "growing_fraction": trajectory["growing_fraction"],
+        "growing_intervals": trajectory["growing_intervals"][:50],
+        "growing_intervals_total": len(trajectory["growing_intervals"]),
+    }
+    return trajectory
 
 
 def _latency_text(latency) -> str:
@@ -244,20 +277,49 @@ def _sampled_lines(sampled: dict) -> list[str]:
 
 
 def format_report(summary: dict) -> str:
-    modes = summary["modes"]
-    lyapunov = summary["lyapunov"]
-    eq13 = summary["eq13"]
+    """report.txt: eq. 13, the linearized loop, the critical Gamma, the safety layer and
+    V(t) along the run (each where the summary has it)."""
     lines = [
         f"Stability of scenario {summary['scenario']}",
         "",
         *(_sampled_lines(summary["sampled"]) if "sampled" in summary else []),
+        *_eq13_lines(summary["eq13"]),
+        *_linear_lines(summary),
+        *_critical_lines(summary),
+    ]
+    safety = summary.get("safety")
+    if safety:
+        lines += _safety_lines(safety)
+    trajectory = summary.get("lyapunov_along_trajectory")
+    if trajectory:
+        lines.append(
+            f"V = 1/2 (E + alpha dE/dt)^2 along the run: monotone after contact = "
+            f"{trajectory['monotone_after_contact']}; grows on "
+            f"{trajectory['growing_intervals_total']} intervals, "
+            f"{number(100 * trajectory['growing_fraction'], ' %')} of the time"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _eq13_lines(eq13: dict) -> list[str]:
+    """Eq. 13 checked symbolically: the corrected law's dV/dt and the printed sign's."""
+    return [
         "Eq. 13 (pydrake.symbolic, per axis):",
         f"  dI/dXr = -K (E + alpha dE/dt): {eq13['dI_dXr_equals_minus_K_weighted_error']}",
         "  corrected law dXr/dt = +Gamma K (E + alpha dE/dt) gives "
-        f"dV/dt = -(E + alpha dE/dt)^2 K Gamma K: {summary['eq13']['corrected_identity']}",
+        f"dV/dt = -(E + alpha dE/dt)^2 K Gamma K: {eq13['corrected_identity']}",
         "  printed eq. 10 (minus sign) gives dV/dt = +(E + alpha dE/dt)^2 K Gamma K: "
-        f"{summary['eq13']['printed_sign_grows']}",
+        f"{eq13['printed_sign_grows']}",
         "",
+    ]
+
+
+def _linear_lines(summary: dict) -> list[str]:
+    """The linearized loop: its modes, eigenvalues, Lyapunov certificate, the step that
+    resolves its fastest mode, and the linear against the nonlinear step response."""
+    modes = summary["modes"]
+    lyapunov = summary["lyapunov"]
+    lines = [
         f"Linearized closed loop at the contact equilibrium ({summary['num_states']} states, "
         f"residual {number(summary['equilibrium_residual'], digits=2)}):",
         f"  stable: {modes['stable']} (max real part "
@@ -292,42 +354,40 @@ def format_report(summary: dict) -> str:
         f"({number(100 * comparison['relative_to_step'], ' %')} "
         "of the step)"
     )
+    return lines
+
+
+def _critical_lines(summary: dict) -> list[str]:
+    """The critical Gamma and the nonlinear runs either side of it."""
     critical = summary["critical_gamma"]
     if critical is None:
-        lines.append("Critical Gamma: none up to 1e-2 (the linearized loop stays stable)")
-    else:
-        confirmation = summary["confirmation"]
+        return ["Critical Gamma: none up to 1e-2 (the linearized loop stays stable)"]
+    confirmation = summary["confirmation"]
+    return [
+        f"Critical Gamma {number(critical, digits=4)} ({number(summary['gamma_margin'])} x the "
+        f"scenario's {number(summary['gamma'])}); nonlinear check: at 0.8 x converges = "
+        f"{confirmation['below']['converges']}, at 1.25 x converges = "
+        f"{confirmation['above']['converges']} (contact lost at "
+        f"{confirmation['above']['contact_lost_time']} s)"
+    ]
+
+
+def _safety_lines(safety: dict) -> list[str]:
+    """The safety layer's unstable points against the paper's law's, and its corner runs."""
+    lines = [
+        f"Safety layer: {safety['unstable_points_with_layer']} unstable points of "
+        f"{safety['map_points']} on the map of Gamma against Ke with the layer, "
+        f"{safety['unstable_points_without_layer']} without it; nonlinear runs at its "
+        "corners (0.5 N step of Fr):"
+    ]
+    for run in safety["edges"]:
         lines.append(
-            f"Critical Gamma {number(critical, digits=4)} ({number(summary['gamma_margin'])} x the "
-            f"scenario's {number(summary['gamma'])}); nonlinear check: at 0.8 x converges = "
-            f"{confirmation['below']['converges']}, at 1.25 x converges = "
-            f"{confirmation['above']['converges']} (contact lost at "
-            f"{confirmation['above']['contact_lost_time']} s)"
+            f"  Ke {number(run['stiffness'], ' N/m')}, Gamma {number(run['gamma'])}: "
+            f"stable = {run['stable']} (peak error {number(run['peak_error_first_fifth'])}"
+            f" -> {number(run['peak_error_last_fifth'])} N, contact lost at "
+            f"{run['contact_lost_time']})"
         )
-    safety = summary.get("safety")
-    if safety:
-        lines.append(
-            f"Safety layer: {safety['unstable_points_with_layer']} unstable points of "
-            f"{safety['map_points']} on the map of Gamma against Ke with the layer, "
-            f"{safety['unstable_points_without_layer']} without it; nonlinear runs at its "
-            "corners (0.5 N step of Fr):"
-        )
-        for run in safety["edges"]:
-            lines.append(
-                f"  Ke {number(run['stiffness'], ' N/m')}, Gamma {number(run['gamma'])}: "
-                f"stable = {run['stable']} (peak error {number(run['peak_error_first_fifth'])}"
-                f" -> {number(run['peak_error_last_fifth'])} N, contact lost at "
-                f"{run['contact_lost_time']})"
-            )
-    trajectory = summary.get("lyapunov_along_trajectory")
-    if trajectory:
-        lines.append(
-            f"V = 1/2 (E + alpha dE/dt)^2 along the run: monotone after contact = "
-            f"{trajectory['monotone_after_contact']}; grows on "
-            f"{trajectory['growing_intervals_total']} intervals, "
-            f"{number(100 * trajectory['growing_fraction'], ' %')} of the time"
-        )
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def _map_figure(report: StabilityReport, name: str):

@@ -38,11 +38,8 @@ def analyse_grasp_stability(
 
 
 def format_grasp_report(summary: dict) -> str:
-    equilibrium = summary["equilibrium"]
-    modes = summary["modes"]
-    resolved = summary["resolved_modes"]
-    neutral = summary["near_neutral_modes"]
-    lyapunov = summary["lyapunov"]
+    """report.txt: the method, the held grasp, the modes, the certificate, each finger's
+    critical Gamma and its nonlinear check, and the notes."""
     h = summary["time_step"]
     lines = [
         f"Stability of grasp scenario {summary['scenario']}",
@@ -51,6 +48,29 @@ def format_grasp_report(summary: dict) -> str:
         f"{summary['num_states']} discrete states, A = df/dx by central differences of one "
         f"simulator step (relative step {number(summary['relative_step'])}).",
         "",
+        *_held_grasp_lines(summary["equilibrium"]),
+        "",
+        *_mode_lines(summary, h),
+        _lyapunov_line(summary["lyapunov"]),
+        *_critical_lines(summary),
+    ]
+    confirmation = summary.get("confirmation")
+    if confirmation:
+        below, above = confirmation["below"], confirmation["above"]
+        lines.append(
+            "Nonlinear check, all fingers (a 0.5 mm nudge of every Xr): at "
+            f"{number(below['gamma'], digits=3)} converges = {below['converges']}, at "
+            f"{number(above['gamma'], digits=3)} converges = {above['converges']} "
+            f"(contact lost: {above['contact_lost']})"
+        )
+    for note in summary.get("notes", []):
+        lines.append(f"Note: {note}")
+    return "\n".join(lines) + "\n"
+
+
+def _held_grasp_lines(equilibrium: dict) -> list[str]:
+    """The held grasp: its residual, the brick's pose and creep, each finger's forces."""
+    lines = [
         f"Held grasp at t = {number(equilibrium['time'], ' s')} (simulated, then Newton on "
         "f(x) = x): "
         f"residual max |f(x) - x| / h = {number(equilibrium['residual'], digits=2)} "
@@ -70,8 +90,16 @@ def format_grasp_report(summary: dict) -> str:
             f"{number(y, digits=3)}) m in its face frame, Xr "
             f"{number(finger['reference_offset'], ' m', digits=4)}"
         )
-    lines += [
-        "",
+    return lines
+
+
+def _mode_lines(summary: dict, h: float) -> list[str]:
+    """The eigenvalues z (and s = ln(z) / h): the near-neutral modes apart, the others'
+    stability."""
+    modes = summary["modes"]
+    resolved = summary["resolved_modes"]
+    neutral = summary["near_neutral_modes"]
+    lines = [
         f"Eigenvalues z: spectral radius {number(modes['spectral_radius'], digits=9)} "
         f"(stable: {modes['stable']}), {modes['zero_eigenvalues']} at z = 0 (held samples); "
         f"least damping ratio {number(modes['least_damped_ratio'])}",
@@ -89,19 +117,27 @@ def format_grasp_report(summary: dict) -> str:
             s = np.log(complex(real, imag)) / h
             line += f"   s = {s.real:12.6g} {s.imag:+12.6g} j"
         lines.append(line)
+    return lines
+
+
+def _lyapunov_line(lyapunov: dict) -> str:
+    """The discrete certificate without the near-neutral modes, or why there is none."""
     if lyapunov.get("positive_definite"):
-        lines.append(
+        return (
             f"Lyapunov (discrete, without the near-neutral modes, {lyapunov['num_states']} "
             "states): A^T P A - P = -I has P > 0 (min eigenvalue "
             f"{number(lyapunov['min_eigenvalue'])}, condition number "
             f"{number(lyapunov['condition_number'])})"
         )
-    else:
-        lines.append(f"Lyapunov: no positive definite P ({lyapunov.get('error', 'P not > 0')})")
-    lines.append(
+    return f"Lyapunov: no positive definite P ({lyapunov.get('error', 'P not > 0')})"
+
+
+def _critical_lines(summary: dict) -> list[str]:
+    """Each finger's critical Gamma (the others kept), and all three's together."""
+    lines = [
         f"Critical Gamma (the scenario's {number(summary['gamma'])}; one finger's scaled, the "
         "others kept):"
-    )
+    ]
     for name, entry in summary["critical_gamma"].items():
         label = "all three together" if name == "all" else name
         if entry["critical_gamma"] is None:
@@ -111,18 +147,7 @@ def format_grasp_report(summary: dict) -> str:
                 f"  {label}: {number(entry['critical_gamma'], digits=4)} "
                 f"({number(entry['margin'], digits=3)} x)"
             )
-    confirmation = summary.get("confirmation")
-    if confirmation:
-        below, above = confirmation["below"], confirmation["above"]
-        lines.append(
-            "Nonlinear check, all fingers (a 0.5 mm nudge of every Xr): at "
-            f"{number(below['gamma'], digits=3)} converges = {below['converges']}, at "
-            f"{number(above['gamma'], digits=3)} converges = {above['converges']} "
-            f"(contact lost: {above['contact_lost']})"
-        )
-    for note in summary.get("notes", []):
-        lines.append(f"Note: {note}")
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def write_grasp_report(summary: dict, out_dir: str | Path, overwrite: bool = True) -> ResultFolder:
