@@ -22,7 +22,8 @@ from admittance.diagrams.robots.spatial_arm.plant import (
     SolveSpatialInverseKinematics,
     example_robot_data_packages,
 )
-from admittance.diagrams.robots.spatial_arm.scenario import SpatialScenario, load_spatial_scenario
+from admittance.diagrams.robots.spatial_arm.scenario import SpatialScenario
+from admittance.diagrams.robots.spatial_arm.validation import load_spatial_scenario
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.diagrams.scenario.schema import ScenarioError
 

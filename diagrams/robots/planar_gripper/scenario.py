@@ -262,7 +262,14 @@ def validate_grasp(scenario: GraspScenario) -> GraspScenario:
     require(s.kind == "grasp", "kind", "'grasp' for a grasp scenario", s.kind)
     for key, allowed in GRASP_RANGES.items():
         require_range(value_of(s, key), key, allowed)
-    # Lists.
+    _check_grasp_lists(s)
+    _check_grasp_choices(s)
+    _check_grasp_dependent_keys(s)
+    return scenario
+
+
+def _check_grasp_lists(s: GraspScenario) -> None:
+    """The lists: one Fr per finger, the PID's two gains, the disturbance's force."""
     require(
         len(s.force_reference) == len(FINGERS)
         and all(math.isfinite(f) and 0 < f <= 50 for f in s.force_reference),
@@ -285,14 +292,22 @@ def validate_grasp(scenario: GraspScenario) -> GraspScenario:
         "2 values (world y, world z) within [-20, 20] N",
         d.force,
     )
-    # Choices.
+
+
+def _check_grasp_choices(s: GraspScenario) -> None:
+    """The choices among names: controller, sensor, disturbance, integration scheme."""
     require_one_of(s.controller.kind, "controller.kind", GRASP_CONTROLLER_KINDS)
     require_one_of(s.sensor.kind, "sensor.kind", ("ideal", "flexiforce"))
-    require_one_of(d.kind, "disturbance.kind", GRASP_DISTURBANCE_KINDS)
+    require_one_of(s.disturbance.kind, "disturbance.kind", GRASP_DISTURBANCE_KINDS)
     require_one_of(
         s.simulator.integration_scheme, "simulator.integration_scheme", INTEGRATION_SCHEMES
     )
-    # Keys that depend on others.
+
+
+def _check_grasp_dependent_keys(s: GraspScenario) -> None:
+    """The keys that depend on others: the start, the real contact stiffness, the duration,
+    the disturbance's start, the reach, and what the sensor can read."""
+    d = s.disturbance
     require(s.simulator.start_time == 0.0, "simulator.start_time", "0", s.simulator.start_time)
     require(
         s.true_contact_stiffness <= MAX_CONTACT_STIFFNESS,
@@ -340,7 +355,6 @@ def validate_grasp(scenario: GraspScenario) -> GraspScenario:
             f"< {0.9 * full_scale:.4g} N with sensor.kind=flexiforce (90 % of full scale)",
             s.force_reference,
         )
-    return scenario
 
 
 def load_grasp_scenario(

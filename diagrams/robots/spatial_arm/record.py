@@ -20,12 +20,9 @@ from admittance.diagrams.robots.spatial_arm.plant import (
 )
 from admittance.diagrams.robots.spatial_arm.replay import write_spatial_meshcat_replay
 from admittance.diagrams.robots.spatial_arm.run import run_spatial, spatial_summary
-from admittance.diagrams.robots.spatial_arm.scenario import (
-    SpatialArmConfig,
-    SpatialScenario,
-    load_spatial_scenario,
-)
+from admittance.diagrams.robots.spatial_arm.scenario import SpatialArmConfig, SpatialScenario
 from admittance.diagrams.robots.spatial_arm.stability_report import spatial_stability
+from admittance.diagrams.robots.spatial_arm.validation import load_spatial_scenario
 
 __all__ = ["ROBOT"]
 
