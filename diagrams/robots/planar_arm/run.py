@@ -104,15 +104,53 @@ class SimulationResult(RunResult):
 
 def compute_metrics(result: SimulationResult) -> dict:
     """The force metrics of metrics.json, plus per-event settling and contact losses."""
-    time = result.time
-    force = result.force
-    reference = result.force_reference
+    series = _ForceSeries.of(result)
+    contact = in_contact(series.force, series.reference)
+    first_contact = first_contact_time(series.time, contact)
+    metrics = _run_metrics(result, series, first_contact)
+    if first_contact is None:
+        # A run that never touches: the layer's section still says what it was held to.
+        _add_safety_metrics(metrics, result)
+        return metrics
+    after = _add_contact_metrics(metrics, series, contact, first_contact)
     scenario = result.scenario
-    duration = float(time[-1])
-    error = np.abs(force - reference)
-    contact = in_contact(force, reference)
-    first_contact = first_contact_time(time, contact)
+    events = _events(scenario, first_contact, series.duration)
+    averaged_force = _averaged_force(series, scenario)
+    # Settled: at least one window after every event, and outside every fault.
+    settled = after & _add_event_metrics(metrics, series, averaged_force, events)
+    for fault in scenario.faults:
+        settled &= ~window_mask(series.time, fault.start, fault.end)
+    if settled.sum() > 1:
+        metrics["mean_abs_force_error_settled"] = time_mean(
+            series.time[settled], series.error[settled]
+        )
+    metrics["finite_actuation"] = bool(np.all(np.isfinite(result.actuation)))
+    metrics["faults"] = _fault_metrics(result, series, averaged_force, events)
+    _add_safety_metrics(metrics, result)
+    _add_wall_motion_metrics(metrics, result, series)
+    return metrics
 
+
+@dataclass
+class _ForceSeries:
+    """The run's force against Fr: time, force, Fr, |F - Fr| and the simulated duration."""
+
+    time: np.ndarray
+    force: np.ndarray
+    reference: float
+    error: np.ndarray
+    duration: float
+
+    @classmethod
+    def of(cls, result: SimulationResult) -> _ForceSeries:
+        time, force, reference = result.time, result.force, result.force_reference
+        return cls(time, force, reference, np.abs(force - reference), float(time[-1]))
+
+
+def _run_metrics(result: SimulationResult, series: _ForceSeries, first_contact) -> dict:
+    """The metrics of every run, in contact or not: the peak and the final window, the
+    run's cost, the tracking of y and theta; the contact metrics still None."""
+    time, force, error = series.time, series.force, series.error
     last = final_window(time)
     metrics: dict = {
         "peak_force": float(np.max(force)),
@@ -126,7 +164,7 @@ def compute_metrics(result: SimulationResult) -> dict:
         "mean_abs_force_error_settled": None,
         "events": [],
         "wall_time": result.wall_time,
-        "real_time_factor": duration / result.wall_time if result.wall_time > 0 else None,
+        "real_time_factor": series.duration / result.wall_time if result.wall_time > 0 else None,
         "integrator_steps": result.integrator_steps,
         "derivative_evaluations": result.derivative_evaluations,
         "samples": int(time.size),
@@ -136,15 +174,19 @@ def compute_metrics(result: SimulationResult) -> dict:
     metrics["max_theta_tracking_error"] = float(np.nanmax(tracking_error[:, 2]))
     metrics["first_contact_transient_end"] = None
     metrics["peak_force_after_first_contact_transient"] = None
-    if first_contact is None:
-        # A run that never touches: the layer's section still says what it was held to.
-        _add_safety_metrics(metrics, result)
-        return metrics
+    return metrics
 
+
+def _add_contact_metrics(
+    metrics: dict, series: _ForceSeries, contact: np.ndarray, first_contact: float
+) -> np.ndarray:
+    """The first contact's transient, the RMS error after it and the contact losses;
+    returns the samples from first contact on."""
+    time, force, error = series.time, series.force, series.error
     # The first contact transient (an impact, or the pre-load of a plan behind the wall)
     # ends when the force first enters the 5 % band around Fr; what follows is the
     # controller's to bound.
-    reached = np.nonzero((time >= first_contact) & (error <= SETTLE_BAND * reference))[0]
+    reached = np.nonzero((time >= first_contact) & (error <= SETTLE_BAND * series.reference))[0]
     if reached.size:
         metrics["first_contact_transient_end"] = float(time[reached[0]])
         metrics["peak_force_after_first_contact_transient"] = float(np.max(force[reached[0] :]))
@@ -155,8 +197,12 @@ def compute_metrics(result: SimulationResult) -> dict:
     metrics["contact_losses"] = int(lost.size)
     if lost.size:
         metrics["last_contact_loss_time"] = float(time[lost[-1] + 1])
+    return after
 
-    # Events: stiffness steps and wall motion start/stop, plus first contact.
+
+def _events(scenario: Scenario, first_contact: float, duration: float) -> list[tuple]:
+    """(kind, time) of the run's events, in time order: first contact, stiffness steps,
+    the wall's motion starting and stopping, each fault's start and end."""
     events = [("first_contact", first_contact)]
     events += [
         ("stiffness_step", s.time) for s in scenario.wall.stiffness_steps if s.time < duration
@@ -169,19 +215,31 @@ def compute_metrics(result: SimulationResult) -> dict:
         events += [(f"{fault.kind}_starts", fault.start), (f"{fault.kind}_ends", fault.end)]
     events = [event for event in events if event[1] < duration]
     events.sort(key=lambda e: e[1])
+    return events
+
+
+def _averaged_force(series: _ForceSeries, scenario: Scenario) -> np.ndarray:
+    """The force that settling is read on: a noisy sensor's reading averaged over
+    SETTLE_AVERAGE_SAMPLES of its noise periods, else the force itself."""
     sensor = scenario.sensor
     if sensor.kind != "ideal" and sensor.noise_std > 0:
         window = SETTLE_AVERAGE_SAMPLES * sensor.noise_period
-        averaged_force = trailing_average(time, force, window)
-    else:
-        averaged_force = force
-    # Settled: at least one window after every event.
-    settled = after.copy()
+        return trailing_average(series.time, series.force, window)
+    return series.force
+
+
+def _add_event_metrics(
+    metrics: dict, series: _ForceSeries, averaged_force: np.ndarray, events: list[tuple]
+) -> np.ndarray:
+    """metrics["events"]: per event, the error before it, the force after it until the
+    next and the settling time; returns the samples outside every event's first window."""
+    time, force, error = series.time, series.force, series.error
+    outside = np.ones(time.shape, dtype=bool)
     for index, (kind, event_time) in enumerate(events):
-        next_time = events[index + 1][1] if index + 1 < len(events) else duration
+        next_time = events[index + 1][1] if index + 1 < len(events) else series.duration
         before = until_mask(time, event_time - STEADY_WINDOW, event_time)
         window = until_mask(time, event_time, next_time)
-        settled &= ~window_mask(time, event_time, event_time + STEADY_WINDOW)
+        outside &= ~window_mask(time, event_time, event_time + STEADY_WINDOW)
         metrics["events"].append(
             {
                 "kind": kind,
@@ -194,21 +252,28 @@ def compute_metrics(result: SimulationResult) -> dict:
                 "peak_force_after": float(np.max(force[window])) if window.any() else None,
                 "min_force_after": float(np.min(force[window])) if window.any() else None,
                 "settling_time": settling_time(
-                    time, averaged_force, reference, event_time, next_time
+                    time, averaged_force, series.reference, event_time, next_time
                 ),
             }
         )
-    for fault in scenario.faults:
-        settled &= ~window_mask(time, fault.start, fault.end)
-    if settled.sum() > 1:
-        metrics["mean_abs_force_error_settled"] = time_mean(time[settled], error[settled])
-    metrics["finite_actuation"] = bool(np.all(np.isfinite(result.actuation)))
-    metrics["faults"] = []
-    for fault in scenario.faults:
+    return outside
+
+
+def _fault_metrics(
+    result: SimulationResult,
+    series: _ForceSeries,
+    averaged_force: np.ndarray,
+    events: list[tuple],
+) -> list[dict]:
+    """metrics["faults"]: per fault, the worst force during it, the peak after it, the
+    recovery time, and (with the safety layer) its detection and collision reaction."""
+    time, force, duration = series.time, series.force, series.duration
+    faults = []
+    for fault in result.scenario.faults:
         during = until_mask(time, fault.start, min(fault.end, duration))
         recovery_end = min([e[1] for e in events if e[1] > fault.end] + [duration])
         after = until_mask(time, fault.end, recovery_end)
-        metrics["faults"].append(
+        faults.append(
             {
                 "kind": fault.kind,
                 "start": fault.start,
@@ -217,26 +282,28 @@ def compute_metrics(result: SimulationResult) -> dict:
                 # The danger of some faults comes when they end (a wall snapping back).
                 "peak_force_after": float(np.max(force[after])) if after.any() else None,
                 "recovery_time": settling_time(
-                    time, averaged_force, reference, fault.end, recovery_end
+                    time, averaged_force, series.reference, fault.end, recovery_end
                 ),
             }
         )
         if result.safety is not None:
             detections = safety_metrics(result)["detections"]
-            metrics["faults"][-1].update(fault_detection(detections, fault.start, fault.end))
+            faults[-1].update(fault_detection(detections, fault.start, fault.end))
             if fault.kind == "joint_torque":
-                metrics["faults"][-1].update(
-                    collision_reaction(result, fault.start, metrics["faults"][-1]["detected_time"])
+                faults[-1].update(
+                    collision_reaction(result, fault.start, faults[-1]["detected_time"])
                 )
-    _add_safety_metrics(metrics, result)
-    if scenario.wall.velocity != 0.0:
-        moving = window_mask(
-            time, scenario.wall.motion_start, min(scenario.wall.motion_end, duration)
-        )
+    return faults
+
+
+def _add_wall_motion_metrics(metrics: dict, result: SimulationResult, series: _ForceSeries) -> None:
+    """The least and the largest force while the wall moves (a moving wall only)."""
+    wall = result.scenario.wall
+    if wall.velocity != 0.0:
+        moving = window_mask(series.time, wall.motion_start, min(wall.motion_end, series.duration))
         if moving.any():
-            metrics["force_min_while_wall_moves"] = float(np.min(force[moving]))
-            metrics["force_max_while_wall_moves"] = float(np.max(force[moving]))
-    return metrics
+            metrics["force_min_while_wall_moves"] = float(np.min(series.force[moving]))
+            metrics["force_max_while_wall_moves"] = float(np.max(series.force[moving]))
 
 
 def _add_safety_metrics(metrics: dict, result: SimulationResult) -> None:

@@ -132,7 +132,6 @@ def compute_grasp_metrics(result: GraspResult) -> dict:
     disturbance = scenario.disturbance
     # The undisturbed hold ends where a disturbance starts.
     hold_end = disturbance.start if disturbance.kind != "none" else np.inf
-    after_ramp = time >= ramp_end
     settle_times = [
         settled_from(time, result.force[:, i], references[i], ramp_end, hold_end) for i in range(3)
     ]
@@ -142,48 +141,14 @@ def compute_grasp_metrics(result: GraspResult) -> dict:
     z = result.brick_pose[:, 1]
     z_start = float(np.interp(hold_start, time, z))
     brick_drop = max(0.0, float(np.max(z_start - z[holding])))
-    last = final_window(time)
-    fingers = []
-    for index, finger in enumerate(FINGERS):
-        force = result.force[:, index]
-        reference = references[index]
-        contact = in_contact(force, reference)
-        contact_after = contact[after_ramp]
-        losses = int(contact_loss_indices(contact_after).size)
-        error_held = np.abs(force[holding] - reference) / reference
-        fingers.append(
-            {
-                "finger": finger,
-                "force_reference": float(reference),
-                "first_contact_time": first_contact_time(time, contact),
-                "peak_force": float(np.max(force)),
-                "peak_force_after_ramp": float(np.max(force[after_ramp])),
-                "min_force_after_ramp": float(np.min(force[after_ramp])),
-                "in_contact_after_ramp": bool(np.all(contact_after)),
-                "contact_losses_after_ramp": losses,
-                "settling_time": (
-                    None if settle_times[index] is None else settle_times[index] - ramp_end
-                ),
-                "final_mean_force": time_mean(time[last], force[last]),
-                "steady_state_force_error": time_mean(time[last], np.abs(force[last] - reference)),
-                "max_relative_force_error_held": float(np.max(error_held)),
-                "slip": float(np.max(np.abs(result.slip[holding, index]))),
-                # Along its face, m/s: the least-squares slope of the slip over the hold.
-                "slip_rate": least_squares_slope(time[holding], result.slip[holding, index]),
-            }
-        )
-    crushed = any(f["peak_force_after_ramp"] > CRUSH_FACTOR * f["force_reference"] for f in fingers)
-    lost = any(not f["in_contact_after_ramp"] for f in fingers)
-    if crushed:
-        outcome = "crushed"
-    elif lost or brick_drop >= DROP_LIMIT:
-        outcome = "lost"
-    else:
-        outcome = "held"
+    fingers = [
+        _finger_metrics(result, index, settle_times[index], holding)
+        for index in range(len(FINGERS))
+    ]
     metrics: dict = {
         "kind": "grasp",
         "controller": scenario.controller.kind,
-        "outcome": outcome,
+        "outcome": _outcome(fingers, brick_drop),
         "force_ramp_end": ramp_end,
         "settling_time": settled,
         "hold_start": hold_start,
@@ -207,24 +172,77 @@ def compute_grasp_metrics(result: GraspResult) -> dict:
         "samples": int(time.size),
     }
     if disturbance.kind != "none":
-        start = disturbance.start
-        end = start + (disturbance.duration if disturbance.kind == "force_pulse" else 0.0)
-        after = time >= start
-        recovery = [settled_from(time, result.force[:, i], references[i], start) for i in range(3)]
-        metrics["disturbance"] = {
-            "kind": disturbance.kind,
-            "start": start,
-            "end": end,
-            "peak_force": [float(np.max(result.force[after, i])) for i in range(3)],
-            "min_force": [float(np.min(result.force[after, i])) for i in range(3)],
-            "contact_kept": bool(
-                np.all(in_contact(result.force[after], references[np.newaxis, :]))
-            ),
-            # From the disturbance's start until every force is back within the band.
-            "recovery_time": None if None in recovery else max(recovery) - start,
-            "brick_drop": max(0.0, float(np.interp(start, time, z) - np.min(z[after]))),
-        }
+        metrics["disturbance"] = _disturbance_metrics(result)
     return metrics
+
+
+def _finger_metrics(
+    result: GraspResult, index: int, settle_time: float | None, holding: np.ndarray
+) -> dict:
+    """One finger's forces after the ramp and over the hold, its settling and its slip."""
+    time = result.time
+    ramp_end = result.scenario.force_ramp_end
+    after_ramp = time >= ramp_end
+    force = result.force[:, index]
+    reference = np.asarray(result.scenario.force_reference)[index]
+    contact = in_contact(force, reference)
+    contact_after = contact[after_ramp]
+    losses = int(contact_loss_indices(contact_after).size)
+    error_held = np.abs(force[holding] - reference) / reference
+    last = final_window(time)
+    return {
+        "finger": FINGERS[index],
+        "force_reference": float(reference),
+        "first_contact_time": first_contact_time(time, contact),
+        "peak_force": float(np.max(force)),
+        "peak_force_after_ramp": float(np.max(force[after_ramp])),
+        "min_force_after_ramp": float(np.min(force[after_ramp])),
+        "in_contact_after_ramp": bool(np.all(contact_after)),
+        "contact_losses_after_ramp": losses,
+        "settling_time": None if settle_time is None else settle_time - ramp_end,
+        "final_mean_force": time_mean(time[last], force[last]),
+        "steady_state_force_error": time_mean(time[last], np.abs(force[last] - reference)),
+        "max_relative_force_error_held": float(np.max(error_held)),
+        "slip": float(np.max(np.abs(result.slip[holding, index]))),
+        # Along its face, m/s: the least-squares slope of the slip over the hold.
+        "slip_rate": least_squares_slope(time[holding], result.slip[holding, index]),
+    }
+
+
+def _outcome(fingers: list[dict], brick_drop: float) -> str:
+    """crushed (a finger's force beyond CRUSH_FACTOR Fr after the ramp), lost (a finger
+    out of contact, or the brick dropped DROP_LIMIT), else held."""
+    crushed = any(f["peak_force_after_ramp"] > CRUSH_FACTOR * f["force_reference"] for f in fingers)
+    lost = any(not f["in_contact_after_ramp"] for f in fingers)
+    if crushed:
+        return "crushed"
+    if lost or brick_drop >= DROP_LIMIT:
+        return "lost"
+    return "held"
+
+
+def _disturbance_metrics(result: GraspResult) -> dict:
+    """From the disturbance's start: the forces' extremes, whether contact held, the
+    recovery into the band and the brick's drop."""
+    time = result.time
+    disturbance = result.scenario.disturbance
+    references = np.asarray(result.scenario.force_reference)
+    z = result.brick_pose[:, 1]
+    start = disturbance.start
+    end = start + (disturbance.duration if disturbance.kind == "force_pulse" else 0.0)
+    after = time >= start
+    recovery = [settled_from(time, result.force[:, i], references[i], start) for i in range(3)]
+    return {
+        "kind": disturbance.kind,
+        "start": start,
+        "end": end,
+        "peak_force": [float(np.max(result.force[after, i])) for i in range(3)],
+        "min_force": [float(np.min(result.force[after, i])) for i in range(3)],
+        "contact_kept": bool(np.all(in_contact(result.force[after], references[np.newaxis, :]))),
+        # From the disturbance's start until every force is back within the band.
+        "recovery_time": None if None in recovery else max(recovery) - start,
+        "brick_drop": max(0.0, float(np.interp(start, time, z) - np.min(z[after]))),
+    }
 
 
 def run_grasp(
