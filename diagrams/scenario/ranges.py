@@ -98,7 +98,7 @@ RANGES: dict[str, Range] = {
     "wall.stiffness": Range(f"(0, {MAX_STIFFNESS:g}]", "N/m"),
     "wall.velocity": Range("[-1, 1]", "m/s"),
     "wall.motion_start": Range(">= 0", "s"),
-    # The joint velocity limits bound it further (loop.planar_arm.CheckTrajectoryReachable).
+    # The joint velocity limits bound it further (robots.planar_arm.loop.CheckTrajectoryReachable).
     "trajectory.frequency": Range("[0, 100]", "Hz"),
     "admittance.gamma": Range("(0, 0.1]"),
     "admittance.alpha": Range("[0, 10]", "s"),

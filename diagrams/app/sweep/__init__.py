@@ -79,9 +79,10 @@ is forked), one point at a time per worker. ``dask`` submits the same points to 
 a YAML base scenario at the same absolute path (built-in names work anywhere).
 
 The package, one module per part: ``specs`` (the axes), ``definition`` (the points,
-validated), ``runner`` (one simulated point, the worker pool and Ctrl-C, shared with
-``admittance compare``), ``points`` (points.jsonl), ``folder`` (sweep.json, the lock),
-``summary`` (table.csv, summary.txt), ``plots`` and ``run`` (:func:`run_sweep`).
+validated), ``points`` (one simulated point, points.jsonl), ``folder`` (sweep.json, the
+lock), ``summary`` (table.csv, summary.txt), ``plots`` and ``run`` (:func:`run_sweep`). The
+worker pool and Ctrl-C are :mod:`admittance.diagrams.run.parallel`'s, shared with
+``admittance compare``.
 """
 
 from admittance.diagrams.app.sweep.definition import SweepDefinition, SweepPoint, define_sweep

@@ -1,7 +1,7 @@
 """The sweep's folder: its definition (sweep.json), its file names, and one sweep at a time.
 
 A sweep writes into its folder as it goes, so the folder carries the result marker
-(``.admittance-result``, see app/result_folder.py) from the start, listing every file the
+(``.admittance-result``, see results/folder.py) from the start, listing every file the
 sweep writes there. A sweep resumes, or with --force starts over in, only a folder that
 holds nothing else: an empty one, or one whose marker lists everything in it.
 """

@@ -26,10 +26,10 @@ contact force of the step that ended now). State x = [z, v, u, w, zi, Xr] (devia
     u' = Kp (Xr - z) - Kd v + Ki w                    w' = w + h (Xr - z)
     Xr' = Gamma K (zi + alpha E)                      zi' = zi + h E
 
-`analyse_spatial_stability` gives the map's eigenvalues (stability.modal_summary), the
-certificate P > 0 of A^T P A - P = -I (stability.lyapunov_certificate), the critical Gamma
-(stability.critical_gain, bisection on the spectral radius) and its confirmation by the
-scenario's nonlinear runs at 0.8 and 1.25 times it.
+`analyse_spatial_stability` gives the map's eigenvalues (analysis.linear.modal_summary),
+the certificate P > 0 of A^T P A - P = -I (analysis.linear.lyapunov_certificate), the
+critical Gamma (analysis.linear.critical_gain, bisection on the spectral radius) and its
+confirmation by the scenario's nonlinear runs at 0.8 and 1.25 times it.
 """
 
 from __future__ import annotations

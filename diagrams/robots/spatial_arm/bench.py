@@ -17,7 +17,7 @@ time (``time.process_time``: other processes on a shared machine barely move it)
   with Fr), the loop and the FLOOR (the same plant, tool and table, no controller: the
   loop's last actuation held constant) each advanced over ``CONTACT_STEPS`` steps,
   interleaved ``repeat`` times, the least of each; their ratio;
-* the Python callbacks, in one extra profiling run (``bench.CallbackProfiler``): calls per
+* the Python callbacks, in one extra profiling run (``run.profiling.CallbackProfiler``): calls per
   step and the time inside each.
 """
 
@@ -96,7 +96,7 @@ def _build_floor(scenario: SpatialScenario, actuation: np.ndarray):
 
 
 def _profile(scenario: SpatialScenario) -> dict:
-    """One whole run with every Python calc counted and timed (bench.CallbackProfiler)."""
+    """One whole run with every Python calc counted and timed (run.profiling.CallbackProfiler)."""
     profiler = CallbackProfiler()
     profiler.patch(python_system_classes(BuildSpatialLoop(scenario).diagram))
     try:

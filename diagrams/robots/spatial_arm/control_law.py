@@ -76,7 +76,8 @@ def start_positions(scenario: SpatialScenario) -> np.ndarray:
 
     Raises:
         ScenarioError: the start is out of reach, or the plan cannot be reached, followed
-            or pressed with (one line; loop.spatial_arm.CheckSpatialPlan, as simulate checks).
+            or pressed with (one line; robots.spatial_arm.loop.CheckSpatialPlan, as
+            simulate checks).
     """
     loop = BuildSpatialLoop(scenario)
     CheckSpatialPlan(loop)

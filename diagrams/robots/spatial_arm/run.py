@@ -216,7 +216,7 @@ def run_spatial(
 
     Raises:
         ScenarioError: the model cannot be loaded, or the arm cannot reach, follow or press
-            with the plan (loop.spatial_arm.CheckSpatialPlan).
+            with the plan (robots.spatial_arm.loop.CheckSpatialPlan).
         SimulationDivergedError: the run blew up (the exception carries the partial result).
     """
     loop = loop or BuildSpatialLoop(scenario)

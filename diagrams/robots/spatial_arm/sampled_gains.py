@@ -48,7 +48,7 @@ AXES = ("x", "y", "z", "rx", "ry", "rz")
 
 
 def normal_model_at(scenario: SpatialScenario, positions, period: float) -> NormalModel:
-    """``analysis.spatial_arm.normal_model`` of `scenario` with the arm at `positions`,
+    """``robots.spatial_arm.analysis.normal_model`` of `scenario` with the arm at `positions`,
     sampled at `period`. A scenario with the wrist sensor is read with the ideal one (the
     reduced model has no sensor filter: its lag takes some of the margin), and one with
     the safety layer without it (the layer's bounds act only near them).

@@ -283,7 +283,7 @@ def loop_critical_gamma(
     scenario: SpatialScenario, equilibrium: LoopStepMap, low: float, high: float
 ) -> float | None:
     """The smallest Gamma in [low, high] at which the whole loop's map reaches spectral
-    radius 1 (log bisection, stability.critical_gain), each map at its own equilibrium
+    radius 1 (log bisection, analysis.linear.critical_gain), each map at its own equilibrium
     (the same forces and Xr; its Newton steps polish it)."""
 
     def matrix(gamma: float) -> np.ndarray:
