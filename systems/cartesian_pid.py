@@ -33,15 +33,15 @@ from pydrake.systems.primitives import Multiplexer
 from pydrake.systems.scalar_conversion import TemplateSystem
 
 from admittance.systems.law_integral import AddLawIntegral
-from admittance.systems.planar_kinematics import (
-    PLANAR_COORDINATES,
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES
+from admittance.systems.posture_task import JointSpaceTorque, PostureTask
+from admittance.systems.spatial_kinematics import frame_kinematics, orientation_error
+from admittance.systems.task_kinematics import (
     ROTATION_COORDINATES,
     kinematics_size,
     task_coordinates,
     wrap_angle,
 )
-from admittance.systems.posture_task import JointSpaceTorque, PostureTask
-from admittance.systems.spatial_kinematics import frame_kinematics, orientation_error
 
 __all__ = ["CartesianPid", "CartesianPidLaw", "CartesianPidLaw_", "PostureTask"]
 

@@ -11,7 +11,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem_
 from pydrake.systems.primitives import Demultiplexer
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from admittance.systems.planar_kinematics import TASK_SIZE, kinematics_size
+from admittance.systems.task_kinematics import kinematics_size, task_coordinates
 
 __all__ = ["CompliantWall", "CompliantWallLaw", "CompliantWallLaw_"]
 
@@ -42,6 +42,7 @@ def CompliantWallLaw_(T):
             plant,
             *,
             frame_name: str,
+            coordinates: Sequence[str],
             position: float,
             stiffness: float,
             stiffness_steps: Sequence[tuple[float, float]],
@@ -55,6 +56,9 @@ def CompliantWallLaw_(T):
             LeafSystem_[T].__init__(self, converter=converter)
             if not plant.HasFrameNamed(frame_name):
                 raise ValueError(f"the plant has no frame named '{frame_name}'")
+            coordinates = task_coordinates(coordinates)
+            if "x" not in coordinates:
+                raise ValueError(f"coordinates must hold x, the wall's normal, got {coordinates}")
             if not (math.isfinite(position)):
                 raise ValueError(f"position must be finite, got {position}")
             if not (math.isfinite(stiffness) and stiffness > 0):
@@ -77,6 +81,7 @@ def CompliantWallLaw_(T):
             self._offsets = offsets
             self._plant = plant
             self._frame_name = frame_name
+            self._coordinates = coordinates
             self._position = float(position)
             self._stiffness = float(stiffness)
             self._steps = steps
@@ -86,11 +91,15 @@ def CompliantWallLaw_(T):
             self._static = self._velocity == 0.0 and not self._offsets
             num_velocities = plant.num_velocities()
             self._num_velocities = num_velocities
-            # J_x, the row of x in J, in the kinematics vector [X; dX/dt; J row by row].
-            self._jacobian_x = slice(2 * TASK_SIZE, 2 * TASK_SIZE + num_velocities)
+            # x in X, and J_x, the row of x in J, in the kinematics vector [X; dX/dt; J row
+            # by row].
+            size = len(coordinates)
+            self._x_index = coordinates.index("x")
+            first = 2 * size + self._x_index * num_velocities
+            self._jacobian_x = slice(first, first + num_velocities)
 
             self.kinematics_input = self.DeclareVectorInputPort(
-                "kinematics", kinematics_size(num_velocities)
+                "kinematics", kinematics_size(num_velocities, size)
             )
             self.contact_force_and_generalized_force_output = self.DeclareVectorOutputPort(
                 "contact_force_and_generalized_force",
@@ -104,6 +113,7 @@ def CompliantWallLaw_(T):
                 self,
                 other._plant.ToScalarType[T](),
                 frame_name=other._frame_name,
+                coordinates=other._coordinates,
                 position=other._position,
                 stiffness=other._stiffness,
                 stiffness_steps=other._steps,
@@ -147,7 +157,7 @@ def CompliantWallLaw_(T):
             time = context.get_time()
             if T is not float:
                 time = time.value() if hasattr(time, "value") else float(time)
-            penetration = kinematics[0] - self.position_at(time)  # x of X = (x, y, theta)
+            penetration = kinematics[self._x_index] - self.position_at(time)  # x of X
             if T is float:
                 force = self.stiffness_at(time) * max(penetration, 0.0)
             else:
@@ -167,9 +177,9 @@ class CompliantWall(Diagram):
 
         F = Ke(t) * max(x_tip - Xe(t), 0)      (compressive, >= 0; the wall never pulls)
 
-    is applied to the fingertip point as the world force (-F, 0, 0), and output as the
-    true contact force. x_tip is the first entry of the ``kinematics`` input, the
-    output of a ``PlanarKinematics`` of the same plant and frame
+    is applied to the frame's origin as the world force (-F, 0, 0), and output as the
+    true contact force. x_tip is the x entry of the ``kinematics`` input, the output of a
+    ``PlanarKinematics`` of the same plant, frame and ``coordinates``, measured in world
     (systems/planar_kinematics.py). Ke steps at given times; Xe moves along +x at a
     given velocity between a start and an end time:
 
@@ -181,9 +191,9 @@ class CompliantWall(Diagram):
     the equivalent stiffness of the wall, the silicone fingertip and the sensor together.
 
     The force reaches the plant as generalized forces, ``generalized_force`` = -F J_x^T
-    with J_x the row of x in the fingertip's Jacobian (from the ``kinematics`` input):
+    with J_x the row of x in the frame's Jacobian (from the ``kinematics`` input):
     connect it to the plant's ``applied_generalized_force`` input. That is the force
-    (-F, 0, 0) applied at the fingertip point, in one Python calc with the contact force:
+    (-F, 0, 0) applied at the frame's origin, in one Python calc with the contact force:
     inside, the law (``CompliantWallLaw``, named ``law``) computes [F; tau] and ``split``
     (a ``Demultiplexer``) gives the two outputs.
 
@@ -201,7 +211,8 @@ class CompliantWall(Diagram):
         self,
         plant,
         *,
-        frame_name: str = "fingertip",
+        frame_name: str,
+        coordinates: Sequence[str],
         position: float,
         stiffness: float,
         stiffness_steps: Sequence[tuple[float, float]] = (),
@@ -213,7 +224,9 @@ class CompliantWall(Diagram):
         """
         Args:
             plant: finalized MultibodyPlant of the arm.
-            frame_name: the frame whose origin touches the wall (the fingertip).
+            frame_name: the frame whose origin touches the wall (the contact point's).
+            coordinates: the task vector X of the ``kinematics`` input (in world), which
+                holds x.
             position: Xe at t = 0, m along world x.
             stiffness: Ke at t = 0, N/m (> 0).
             stiffness_steps: (time s, Ke N/m) pairs, times increasing, Ke > 0.
@@ -229,6 +242,7 @@ class CompliantWall(Diagram):
             CompliantWallLaw(
                 plant,
                 frame_name=frame_name,
+                coordinates=coordinates,
                 position=position,
                 stiffness=stiffness,
                 stiffness_steps=stiffness_steps,

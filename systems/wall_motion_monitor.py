@@ -39,7 +39,7 @@ from pydrake.autodiffutils import AutoDiffXd
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 
 __all__ = ["WallMotionMonitor", "WallMotionMonitor_", "approach_evidence"]
 
@@ -139,7 +139,9 @@ def WallMotionMonitor_(T):
             self._noise = float(noise_std)
             self._contact_force = float(contact_force)
             self._normal_axis = int(normal_axis)
-            self._kinematics = PlanarFrameKinematics(plant, frame_name)
+            self._kinematics = PlanarFrameKinematics(
+                plant, frame_name, coordinates=PLANAR_COORDINATES
+            )
             nq, nv = plant.num_positions(), plant.num_velocities()
             self._num_positions = nq
             self.measured_force_input = self.DeclareVectorInputPort("measured_force", 1)

@@ -35,7 +35,7 @@ from admittance.systems.fault_detector import (
     unexplained_torque,
 )
 from admittance.systems.joint_torque_fault import JointTorqueFault, JointTorqueFault_
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 
 PERIOD = 0.005
 TOLERANCE = 1.12  # 0.2 Fr + 6 sigma for Fr = 5 N, sigma = 0.02 N
@@ -46,7 +46,7 @@ POSE = [0.2, -0.25, math.pi / 2]
 
 def _normal_row(arm_plant, pose=POSE):
     q = SolvePlanarInverseKinematics(arm_plant, "fingertip", pose, [-0.45, 1.66, 0.36])
-    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.concatenate([q, np.zeros(3)]))
     return q, kinematics.jacobian()
 

@@ -23,7 +23,7 @@ from admittance.diagrams.robots.spatial_arm.plant import (
 )
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.systems.contact_force_observer import ContactForceObserver
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 from admittance.systems.spatial_kinematics import SPATIAL_COORDINATES, SpatialFrameKinematics
 from admittance.urdf import PLANAR_ARM_URDF
 
@@ -34,7 +34,7 @@ POSE = [0.2, -0.25, math.pi / 2]
 def arm(arm_plant):
     q = SolvePlanarInverseKinematics(arm_plant, "fingertip", POSE, [-0.45, 1.66, 0.36])
     v = np.array([0.3, -0.2, 0.1])  # moving: p = M v is not zero
-    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.concatenate([q, v]))
     return arm_plant, np.concatenate([q, v]), kinematics.jacobian()
 
@@ -189,7 +189,7 @@ def test_the_full_observer_reads_no_force_on_an_arm_moving_freely_at_1_rad_per_s
     np.testing.assert_allclose(old_torque, expected, rtol=0, atol=1e-6)
     # Its spurious force along the wall normal, -(J^-T r)_x, with r from the lag model:
     # up to 21 mN here (measured), 1e-6 N apart (5e-8 measured).
-    kinematics = PlanarFrameKinematics(plant, "fingertip")
+    kinematics = PlanarFrameKinematics(plant, "fingertip", coordinates=PLANAR_COORDINATES)
     spurious = []
     for state, torque in zip(states, expected, strict=True):
         kinematics.set_state(state)

@@ -15,7 +15,7 @@ from admittance.systems.fault_detector import (
     SensorFaultDetector,
     plausibility_allowance,
 )
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 
 PERIOD = 0.005
 NOISE = 0.02
@@ -44,7 +44,7 @@ def _at_the_pose(arm_plant, detector, tip_velocity=(0.0, 0.0, 0.0)):
     q = SolvePlanarInverseKinematics(
         arm_plant, "fingertip", [0.2, -0.25, math.pi / 2], [-0.45, 1.66, 0.36]
     )
-    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.concatenate([q, np.zeros(3)]))
     v = np.linalg.solve(kinematics.jacobian(), tip_velocity)
     detector.estimated_state_input.FixValue(context, np.concatenate([q, v]))
@@ -375,7 +375,7 @@ def test_evidence_is_strictly_beyond_the_tolerance(arm_plant):
     assert not any(_sample(monitor, 5.0, observed=6.0)["implausible"] for _ in range(4))
     detector, context = _quiet_moving(arm_plant, [0.01, 0.0, 0.0])
     state = detector.estimated_state_input.Eval(context)
-    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(state)
     speed = abs((kinematics.jacobian() @ state[3:])[0])
     edge = _detector(arm_plant, noise_std=0.0, force_tolerance=5e4 * speed * PERIOD)

@@ -20,7 +20,7 @@ from admittance.diagrams.robots.planar_arm.run import run_scenario
 from admittance.diagrams.robots.planar_arm.scenario import ArmConfig
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.systems.contact_force_observer import ContactForceObserver
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 
 # The stated motor-side viscous friction, N m s/rad (docs/safety.md, section 3).
 MOTOR_DAMPING = 2.4e-6
@@ -69,7 +69,7 @@ def test_the_observer_reads_the_damping_torque_as_a_force_below_the_tolerance():
 
 
 def _jacobian(plant, q):
-    kinematics = PlanarFrameKinematics(plant, "fingertip")
+    kinematics = PlanarFrameKinematics(plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.concatenate([q, np.zeros(3)]))
     return np.array(kinematics.jacobian(), dtype=float)
 

@@ -14,7 +14,7 @@ from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKine
 from admittance.systems import contact_model as model
 from admittance.systems.contact_force_observer import ContactForceObserver
 from admittance.systems.fault_detector import SensorFaultDetector
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 from admittance.systems.safe_admittance import SafeAdmittance
 from admittance.systems.stiffness_estimator import StiffnessEstimator
 
@@ -159,7 +159,7 @@ def test_the_reference_carries_a_damper_along_the_normal(arm_plant, law):
     """A tip moving at 1 cm/s along +x: Xr is lower by (c / Kp) 0.01 m, c = Kd_total - Kd:
     through the PID's spring, a force of -c x'."""
     system, context, q = law
-    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.concatenate([q, np.zeros(3)]))
     v = np.linalg.solve(kinematics.jacobian(), [0.01, 0.0, 0.0])
     still, _, _ = _evaluate(law, FR - 0.2)
@@ -240,7 +240,7 @@ def test_every_system_of_the_layer_converts_to_autodiff(arm_plant):
     law.sensor_fault_input.FixValue(context, [AutoDiffXd(0.0)])
     law.measured_force_input.FixValue(context, [AutoDiffXd(FR)])
     gradient = law.reference_offset_output.Eval(context)[0].derivatives()
-    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.concatenate([q, np.zeros(3)]))
     c = TOTAL_DAMPING - KD
     assert gradient[3:] == pytest.approx(-c / KP * kinematics.jacobian()[0], rel=1e-3)
@@ -380,7 +380,7 @@ def test_a_run_may_start_with_the_tip_exactly_at_the_push_bound(arm_plant, law):
     """A law whose max_push is exactly the tip's offset from Xd (tip - Xd, exact in floating
     point: Xd within a factor 2 of the tip's x) starts there."""
     _, context, q = law
-    tip = PlanarFrameKinematics(arm_plant, "fingertip")
+    tip = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     tip.set_state(np.concatenate([q, np.zeros(3)]))
     x = tip.pose()[0]
     desired = x - 0.01

@@ -35,9 +35,10 @@ from admittance.systems.classical_admittance import ClassicalAdmittance
 from admittance.systems.fixed_reference import FixedReference
 from admittance.systems.flexiforce import FlexiForceSensor
 from admittance.systems.optimal_admittance import OptimalAdmittance
-from admittance.systems.planar_kinematics import PlanarKinematics, has_rotation_vector
+from admittance.systems.planar_kinematics import PlanarKinematics
 from admittance.systems.sensor_fault import SensorFault
 from admittance.systems.spatial_kinematics import SpatialKinematics
+from admittance.systems.task_kinematics import TaskKinematics, has_rotation_vector
 from admittance.systems.wrench_sensor import WrenchInControlFrame, WrenchSensor
 
 __all__ = [
@@ -56,7 +57,7 @@ __all__ = [
 
 def AddPointKinematics(
     builder: DiagramBuilder, plant: MultibodyPlant, point: ForcePoint
-) -> PlanarKinematics | SpatialKinematics:
+) -> TaskKinematics:
     """X, dX/dt and J of the point's frame, once per evaluation, for its PID and contact:
     ``SpatialKinematics`` when its coordinates hold the rotation vector (rx, ry, rz),
     ``PlanarKinematics`` otherwise (same ``kinematics`` output layout)."""
@@ -255,7 +256,7 @@ def AddPointPid(
     builder: DiagramBuilder,
     plant: MultibodyPlant,
     point: ForcePoint,
-    kinematics: PlanarKinematics | SpatialKinematics,
+    kinematics: TaskKinematics,
     desired_velocity_output,
 ) -> CartesianPid:
     """The Cartesian PID of eq. 14-16 at the point (its Xc and its torques are wired by the

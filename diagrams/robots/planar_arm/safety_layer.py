@@ -37,7 +37,7 @@ from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.systems.contact_force_observer import ContactForceObserver
 from admittance.systems.fault_detector import SensorFaultDetector
 from admittance.systems.flexiforce import FlexiForceSensor
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 from admittance.systems.safe_admittance import SafeAdmittance
 from admittance.systems.stiffness_estimator import StiffnessEstimator
 from admittance.systems.wall_motion_monitor import WallMotionMonitor
@@ -254,7 +254,7 @@ def sampled_damper_gain(plant, frame_name: str, state, kd, period: float) -> flo
     unit circle only while h lambda_i < 2. It is a necessary condition: the stiffness and
     the contact take some of that room.
     """
-    kinematics = PlanarFrameKinematics(plant, frame_name)
+    kinematics = PlanarFrameKinematics(plant, frame_name, coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.asarray(state, dtype=float))
     jacobian = np.asarray(kinematics.jacobian(), dtype=float)
     mass = plant.CalcMassMatrix(kinematics.context)
@@ -336,7 +336,9 @@ def first_contact_approach(result, law: SafeAdmittance) -> dict:
     row = touching[0] - 1
     state = np.concatenate([result.joint_positions[row], result.joint_velocities[row]])
     numbers = law.numbers_at(state, result.scenario.force_reference)
-    kinematics = PlanarFrameKinematics(law.plant, result.scenario.arm.fingertip_frame)
+    kinematics = PlanarFrameKinematics(
+        law.plant, result.scenario.arm.fingertip_frame, coordinates=PLANAR_COORDINATES
+    )
     kinematics.set_state(state)
     speed = float(kinematics.jacobian()[NORMAL_AXIS] @ result.joint_velocities[row])
     return {
@@ -373,7 +375,9 @@ def safety_metrics(result) -> dict:
 def tip_speed(result, plant) -> np.ndarray:
     """The fingertip's speed along its path at each logged sample, m/s: |J_t(q) v|, J_t the
     translational rows of the fingertip's Jacobian."""
-    kinematics = PlanarFrameKinematics(plant, result.scenario.arm.fingertip_frame)
+    kinematics = PlanarFrameKinematics(
+        plant, result.scenario.arm.fingertip_frame, coordinates=PLANAR_COORDINATES
+    )
     speeds = np.empty(len(result.time))
     for row, (q, v) in enumerate(zip(result.joint_positions, result.joint_velocities, strict=True)):
         kinematics.set_state(np.concatenate([q, v]))
