@@ -65,8 +65,8 @@ def AdaptiveImpedance_(T):
             mass: float | Sequence[float],
             damping: float | Sequence[float],
             adaptation_rate: float | Sequence[float],
-            force_axes: Sequence[int] = (0,),
-            num_axes: int = 3,
+            force_axes: Sequence[int],
+            num_axes: int,
             converter=None,
         ) -> None:
             """
@@ -74,7 +74,7 @@ def AdaptiveImpedance_(T):
                 mass: m of the impedance per force axis, kg (> 0).
                 damping: b of the impedance per force axis, N s/m (> 0).
                 adaptation_rate: eta / lambda of the Phi update per force axis, 1/s (> 0).
-                force_axes: indices of the force-controlled axes in X (x=0, y=1, theta=2).
+                force_axes: indices of the force-controlled axes in X.
                 num_axes: size of the reference offset output.
             """
             LeafSystem_[T].__init__(self, converter=converter)

@@ -33,7 +33,6 @@ from pydrake.systems.primitives import Multiplexer
 from pydrake.systems.scalar_conversion import TemplateSystem
 
 from admittance.systems.law_integral import AddLawIntegral
-from admittance.systems.planar_kinematics import PLANAR_COORDINATES
 from admittance.systems.posture_task import JointSpaceTorque, PostureTask
 from admittance.systems.spatial_kinematics import frame_kinematics, orientation_error
 from admittance.systems.task_kinematics import (
@@ -65,10 +64,10 @@ def CartesianPidLaw_(T):
             tau = clip(J(q)^T F_PID, -effort_limit, effort_limit)            (eq. 16)
             dz/dt = ec  (+ back-calculation while an actuator saturates)
 
-        X is the task vector of ``coordinates`` (by default the arm's (x, y, theta); a
-        finger of a hand uses (x, y) of its tip in its face's frame), m = len(coordinates)
-        long; the angle error, if X has theta, is wrapped. tau drives only the actuators
-        whose joints move the frame (a finger's PID gives zero torque to the others).
+        X is the task vector of ``coordinates`` (an arm's (x, y, theta); a finger of a
+        hand's (x, y) of its tip in its face's frame), m = len(coordinates) long; the angle
+        error, if X has theta, is wrapped. tau drives only the actuators whose joints move
+        the frame (a finger's PID gives zero torque to the others).
 
         The law reads its inputs as one vector ``law_input``, gathered by a Multiplexer in
         ``CartesianPid`` (one port read instead of four, each about 0.5 us): the commanded
@@ -97,8 +96,8 @@ def CartesianPidLaw_(T):
             kp: float | Sequence[float],
             kd: float | Sequence[float],
             ki: float | Sequence[float],
+            coordinates: Sequence[str],
             period: float = 0.0,
-            coordinates: Sequence[str] = PLANAR_COORDINATES,
             gravity_compensation: bool = False,
             posture: PostureTask | None = None,
             converter=None,
@@ -106,10 +105,10 @@ def CartesianPidLaw_(T):
             """
             Args:
                 plant: finalized MultibodyPlant_[T] (the arm, or a hand with its object).
+                coordinates: the task vector X, names among TASK_COORDINATES.
                 kp, kd, ki: diagonal gains on X: N/m, N s/m, N/(m s) and the rotational
                     equivalents. kp > 0, kd >= 0, ki >= 0.
                 period: 0 for a continuous controller, otherwise its sampling period in s.
-                coordinates: the task vector X, names among TASK_COORDINATES.
                 gravity_compensation: add -tau_g(q) = g(q) from the plant.
                 posture: a joint-space posture task in the null space of J, or None.
             """
@@ -426,8 +425,8 @@ class CartesianPid(Diagram):
     output of a ``PlanarKinematics`` (or ``SpatialKinematics``, for rx, ry, rz) of the
     same plant, frame and task space. The task space is given at construction: which
     coordinates of the frame (TASK_COORDINATES: its origin's x, y, z, its rotation theta
-    about z, or its rotation vector rx, ry, rz) measured in which frame; by default
-    (x, y, theta) in world, the planar arm. A finger of a hand is controlled on (x, y) of
+    about z, or its rotation vector rx, ry, rz) measured in which frame: (x, y, theta)
+    in world for a planar arm. A finger of a hand is controlled on (x, y) of
     its tip in a frame fixed at the face it touches, and drives only its own joints. The
     angle error is wrapped to [-pi, pi]; the rotation error is log(R_d R^T) (see the
     module). The commanded velocity is whatever the caller wires in; the project feeds
@@ -462,12 +461,12 @@ class CartesianPid(Diagram):
         self,
         plant,
         *,
-        frame_name: str = "fingertip",
+        frame_name: str,
+        coordinates: Sequence[str],
         kp: float | Sequence[float],
         kd: float | Sequence[float],
         ki: float | Sequence[float],
         period: float = 0.0,
-        coordinates: Sequence[str] = PLANAR_COORDINATES,
         expressed_in: str = "world",
         gravity_compensation: bool = False,
         posture: PostureTask | None = None,
@@ -475,11 +474,11 @@ class CartesianPid(Diagram):
         """
         Args:
             plant: finalized MultibodyPlant (the arm, or a hand with its object).
-            frame_name: the controlled frame (the fingertip contact point).
+            frame_name: the controlled frame (the contact point's).
+            coordinates: the task vector X, names among TASK_COORDINATES.
             kp, kd, ki: diagonal gains on X: N/m, N s/m, N/(m s) and the rotational
                 equivalents (N m/rad, N m s/rad, N m/(rad s)). kp > 0, kd >= 0, ki >= 0.
             period: 0 for a continuous controller, otherwise its sampling period in s.
-            coordinates: the task vector X, names among TASK_COORDINATES.
             expressed_in: the frame X is measured and expressed in (fixed in world).
             gravity_compensation: add g(q) = -tau_g(q) from the plant (the ``state``
                 input is then declared).

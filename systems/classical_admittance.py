@@ -57,8 +57,8 @@ def ClassicalAdmittance_(T):
             mass: float | Sequence[float],
             damping: float | Sequence[float],
             stiffness: float | Sequence[float] = 0.0,
-            force_axes: Sequence[int] = (0,),
-            num_axes: int = 3,
+            force_axes: Sequence[int],
+            num_axes: int,
             converter=None,
         ) -> None:
             """
@@ -66,7 +66,7 @@ def ClassicalAdmittance_(T):
                 mass: M per force axis, kg (> 0).
                 damping: D per force axis, N s/m (> 0).
                 stiffness: Ks per force axis, N/m (>= 0; 0 = mass-damper).
-                force_axes: indices of the force-controlled axes in X (x=0, y=1, theta=2).
+                force_axes: indices of the force-controlled axes in X.
                 num_axes: size of the reference offset output.
             """
             LeafSystem_[T].__init__(self, converter=converter)

@@ -50,15 +50,15 @@ def FixedReference_(T):
             *,
             wall_position: float | Sequence[float],
             wall_stiffness: float | Sequence[float],
-            force_axes: Sequence[int] = (0,),
-            num_axes: int = 3,
+            force_axes: Sequence[int],
+            num_axes: int,
             converter=None,
         ) -> None:
             """
             Args:
                 wall_position: the estimate Xe_est of the wall surface per force axis, m.
                 wall_stiffness: the estimate Ke_est per force axis, N/m (> 0).
-                force_axes: indices of the force-controlled axes in X (x=0, y=1, theta=2).
+                force_axes: indices of the force-controlled axes in X.
                 num_axes: size of Xd and of the reference offset output.
             """
             LeafSystem_[T].__init__(self, converter=converter)

@@ -64,7 +64,7 @@ def OptimalAdmittanceLaw_(T):
         """The law of the optimal admittance (paper eq. 10, corrected sign); see
         ``OptimalAdmittance``.
 
-        For each force-controlled axis i (an index into the Cartesian vector X = (x, y, theta)):
+        For each force-controlled axis i (an index into the task vector X):
 
             E_i = desired_force_i - measured_force_i
             Xr_i = gamma_i * stiffness_i * (z_i + alpha_i * (E_i - E0_i))
@@ -278,7 +278,7 @@ OptimalAdmittanceLaw = OptimalAdmittanceLaw_[None]
 class OptimalAdmittance(Diagram):
     """Optimal admittance (paper eq. 10 with the corrected sign), one integrator per axis.
 
-    For each force-controlled axis i (an index into the Cartesian vector X = (x, y, theta)):
+    For each force-controlled axis i (an index into the task vector X):
 
         E_i = desired_force_i - measured_force_i
         dz_i/dt = E_i
@@ -327,8 +327,8 @@ class OptimalAdmittance(Diagram):
         gamma: float | Sequence[float],
         alpha: float | Sequence[float],
         stiffness: float | Sequence[float],
-        force_axes: Sequence[int] = (0,),
-        num_axes: int = 3,
+        force_axes: Sequence[int],
+        num_axes: int,
         period: float = 0.0,
         max_push: float | Sequence[float] = math.inf,
         max_retract: float | Sequence[float] = math.inf,
@@ -340,8 +340,8 @@ class OptimalAdmittance(Diagram):
             gamma: Gamma of eq. 10 per force-controlled axis (> 0), m/(N s) per unit K.
             alpha: weight of dE/dt in the cost of eq. 7, per axis (>= 0), s.
             stiffness: K of eq. 10 per axis (> 0): the PID's Kp on that axis, N/m.
-            force_axes: indices of the force-controlled axes in X (x=0, y=1, theta=2).
-            num_axes: size of the reference offset output (3 for a planar arm).
+            force_axes: indices of the force-controlled axes in X.
+            num_axes: size of the reference offset output (the size of X).
             period: 0 for the continuous law, otherwise the sampling period in s.
             max_push: the largest Xr along +axis (into the wall), m (> 0; inf = none).
             max_retract: the largest Xr along -axis (away from the wall), m (> 0).

@@ -447,7 +447,7 @@ def WrenchInControlFrame_(T):
             control_frame: str = "world",
             *,
             contact_offset: Sequence[float] = (0.0, 0.0, 0.0),
-            axes: Sequence[int] = (2,),
+            axes: Sequence[int],
             frames: dict | None = None,
             converter=None,
         ) -> None:
