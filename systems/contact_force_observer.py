@@ -14,9 +14,8 @@ so tau_ext = J^T (-F e_n) and the estimate of the compressive contact force is
 
     F_hat = -(J^-T r)_n,
 
-J the Jacobian of the task coordinates (``coordinates`` in ``expressed_in``, as
-systems/planar_kinematics.py and systems/spatial_kinematics.py take them) and n the
-normal's index in X; for a redundant arm J^-T is the least-squares solve.
+J the Jacobian of the contact frame's task coordinates and n the normal's index in X
+(systems/contact_frame.py); for a redundant arm J^-T is the least-squares solve.
 
 **C(q, v)^T v** is the Lagrangian's dT/dq at fixed v (T = v^T M(q) v / 2, for q' = v), so
 that p' = tau + tau_g + dT/dq + tau_ext. It is computed as dM/dt v - C(q, v) v (from
@@ -42,8 +41,7 @@ from pydrake.autodiffutils import AutoDiffXd
 from pydrake.systems.framework import LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from admittance.systems.planar_kinematics import PLANAR_COORDINATES
-from admittance.systems.spatial_kinematics import frame_kinematics
+from admittance.systems.contact_frame import ContactFrame
 
 __all__ = ["ContactForceObserver", "ContactForceObserver_", "velocity_product"]
 
@@ -101,11 +99,8 @@ def ContactForceObserver_(T):
             self,
             plant,
             *,
-            frame_name: str = "fingertip",
+            contact: ContactFrame,
             gain: float = 100.0,
-            normal_axis: int = 0,
-            coordinates=PLANAR_COORDINATES,
-            expressed_in: str = "world",
             coriolis: bool = True,
             period: float = 0.0,
             converter=None,
@@ -113,12 +108,8 @@ def ContactForceObserver_(T):
             """
             Args:
                 plant: finalized MultibodyPlant_[T] of the arm.
-                frame_name: the contact frame.
+                contact: the contact frame, its task vector X and the normal's index in X.
                 gain: K_o, the observer's bandwidth, 1/s (> 0).
-                normal_axis: the contact normal's index in X.
-                coordinates: the task vector X (x, y, theta by default; the spatial
-                    arm's x, y, z, rx, ry, rz), names among TASK_COORDINATES.
-                expressed_in: the frame X is measured and expressed in.
                 coriolis: integrate C(q, v)^T v (False: the observer without it, for the
                     comparison of docs/safety.md).
                 period: 0 integrates p_I continuously; > 0 steps it by Euler once per
@@ -131,12 +122,11 @@ def ContactForceObserver_(T):
                 raise ValueError(f"period must be >= 0 s with gain x period < 2, got {period}")
             self._period = float(period)
             self._plant = plant
-            self._frame_name = frame_name
+            self._contact = contact
             self._gain = float(gain)
-            self._normal_axis = int(normal_axis)
-            self._task = dict(coordinates=tuple(coordinates), expressed_in=expressed_in)
+            self._normal_axis = contact.normal_axis
             self._coriolis = bool(coriolis)
-            self._kinematics = frame_kinematics(plant, frame_name, **self._task)
+            self._kinematics = contact.kinematics(plant)
             self._shifted_context = plant.CreateDefaultContext()
             nq, nv = plant.num_positions(), plant.num_velocities()
             self._num_positions = nq
@@ -171,13 +161,11 @@ def ContactForceObserver_(T):
             Impl._construct(
                 self,
                 other._plant.ToScalarType[T](),
-                frame_name=other._frame_name,
+                contact=other._contact,
                 gain=other._gain,
-                normal_axis=other._normal_axis,
                 coriolis=other._coriolis,
                 period=other._period,
                 converter=converter,
-                **other._task,
             )
 
         @property

@@ -51,6 +51,7 @@ passes the reading on (trusted_force = measured_force, no flag).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from pydrake.autodiffutils import AutoDiffXd
@@ -58,15 +59,16 @@ from pydrake.common.value import Value
 from pydrake.systems.framework import BasicVector_, LeafSystem_, ValueProducer
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from admittance.systems.planar_kinematics import PLANAR_COORDINATES
-from admittance.systems.spatial_kinematics import frame_kinematics
+from admittance.systems.contact_frame import ContactFrame
 
 __all__ = [
     "FAULT_FLAGS",
+    "FaultDetectorParams",
     "SensorFaultDetector",
     "SensorFaultDetector_",
     "collision_tolerance",
     "contact_torque_check",
+    "detection_delay",
     "plausibility_allowance",
     "unexplained_torque",
 ]
@@ -97,6 +99,44 @@ _STATE_SIZE = 11
 
 def _value(x) -> float:
     return float(x) if isinstance(x, float | int) else float(x.value())
+
+
+def detection_delay(period: float) -> float:
+    """The monitor's longest delay from a fault's onset to its flag at the sample period
+    `period`, s: N + 1 samples."""
+    return (max(STUCK_SAMPLES, IMPLAUSIBLE_SAMPLES) + 1) * period
+
+
+@dataclass(frozen=True)
+class FaultDetectorParams:
+    """The monitor's numbers (``SensorFaultDetector``).
+
+    Attributes:
+        period: T, the sample period of the reading (the ADC's), s.
+        noise_std: sigma, the noise expected on the reading, N (0 = none).
+        saturation_force: the sensor's full scale, N.
+        contact_force: F_c, the force above which the tip is in contact, N.
+        force_tolerance: F_tol, the base tolerance of the plausibility check, N.
+        observer_gain: K_o of the force observer, 1/s.
+        frozen: no state, no check (analysis diagrams).
+        contact_axes: the indices in X of the forces a contact at the frame can make,
+            which the collision check takes as explained (None: the normal alone, a
+            frictionless contact; a tool on a table with friction: its x, y and z).
+    """
+
+    period: float
+    noise_std: float
+    saturation_force: float
+    contact_force: float
+    force_tolerance: float
+    observer_gain: float
+    frozen: bool = False
+    contact_axes: tuple[int, ...] | None = None
+
+    @property
+    def detection_delay(self) -> float:
+        """The longest delay from a fault's onset to its flag, s: N + 1 samples."""
+        return detection_delay(self.period)
 
 
 def unexplained_torque(residual, normal_row) -> float:
@@ -174,78 +214,44 @@ def SensorFaultDetector_(T):
             self,
             plant,
             *,
-            frame_name: str = "fingertip",
-            period: float,
-            noise_std: float,
-            saturation_force: float,
-            contact_force: float,
-            force_tolerance: float,
-            observer_gain: float,
-            normal_axis: int = 0,
-            frozen: bool = False,
-            coordinates=PLANAR_COORDINATES,
-            expressed_in: str = "world",
-            contact_axes=None,
+            contact: ContactFrame,
+            params: FaultDetectorParams,
             converter=None,
         ) -> None:
             """
             Args:
                 plant: finalized MultibodyPlant_[T] of the arm.
-                frame_name: the contact frame.
-                period: T, the sample period of the reading (the ADC's), s.
-                noise_std: sigma, the noise expected on the reading, N (0 = none).
-                saturation_force: the sensor's full scale, N.
-                contact_force: F_c, the force above which the tip is in contact, N.
-                force_tolerance: F_tol, the base tolerance of the plausibility check, N.
-                observer_gain: K_o of the force observer, 1/s.
-                normal_axis: the wall normal's index in X = (x, y, theta).
-                frozen: no state, no check (analysis diagrams).
-                coordinates, expressed_in: the task vector X and its frame (the planar
-                    arm's x, y, theta in world by default; the spatial arm's tool tip).
-                contact_axes: the indices in X of the forces a contact at the frame can
-                    make, which the collision check takes as explained (the normal alone
-                    by default: the planar arm's frictionless wall; a tool on a table
-                    with friction: its x, y and z).
+                contact: the contact frame, its task vector X and the normal's index in X.
+                params: the monitor's numbers.
             """
             LeafSystem_[T].__init__(self, converter=converter)
-            for name, value in (
-                ("period", period),
-                ("saturation_force", saturation_force),
-                ("contact_force", contact_force),
-                ("force_tolerance", force_tolerance),
-                ("observer_gain", observer_gain),
+            for name in (
+                "period",
+                "saturation_force",
+                "contact_force",
+                "force_tolerance",
+                "observer_gain",
             ):
+                value = getattr(params, name)
                 if not (math.isfinite(value) and value > 0):
                     raise ValueError(f"{name} must be > 0, got {value}")
-            if not (math.isfinite(noise_std) and noise_std >= 0):
-                raise ValueError(f"noise_std must be >= 0 N, got {noise_std}")
+            if not (math.isfinite(params.noise_std) and params.noise_std >= 0):
+                raise ValueError(f"noise_std must be >= 0 N, got {params.noise_std}")
             self._plant = plant
-            self._arguments = dict(
-                frame_name=frame_name,
-                period=period,
-                noise_std=noise_std,
-                saturation_force=saturation_force,
-                contact_force=contact_force,
-                force_tolerance=force_tolerance,
-                observer_gain=observer_gain,
-                normal_axis=normal_axis,
-                frozen=frozen,
-                coordinates=tuple(coordinates),
-                expressed_in=expressed_in,
-                contact_axes=None if contact_axes is None else tuple(contact_axes),
-            )
+            self._contact = contact
+            self._params = params
+            normal_axis = contact.normal_axis
+            contact_axes = params.contact_axes
             self._contact_axes = [normal_axis] if contact_axes is None else list(contact_axes)
-            self._period = float(period)
-            self._noise_std = float(noise_std)
-            self._saturation_force = float(saturation_force)
-            self._contact_force = float(contact_force)
-            self._force_tolerance = float(force_tolerance)
-            self._observer_gain = float(observer_gain)
-            self._normal_axis = int(normal_axis)
-            self._frozen = bool(frozen)
-            self._kinematics = frame_kinematics(
-                plant, frame_name, coordinates=coordinates, expressed_in=expressed_in
-            )
+            self._period = float(params.period)
+            self._noise_std = float(params.noise_std)
+            self._saturation_force = float(params.saturation_force)
+            self._contact_force = float(params.contact_force)
+            self._force_tolerance = float(params.force_tolerance)
+            self._observer_gain = float(params.observer_gain)
+            self._normal_axis = normal_axis
+            self._frozen = bool(params.frozen)
+            self._kinematics = contact.kinematics(plant)
             self._num_positions = plant.num_positions()
             nx = plant.num_positions() + plant.num_velocities()
             self.measured_force_input = self.DeclareVectorInputPort("measured_force", 1)
@@ -293,7 +299,11 @@ def SensorFaultDetector_(T):
 
         def _construct_copy(self, other, converter=None) -> None:
             Impl._construct(
-                self, other._plant.ToScalarType[T](), converter=converter, **other._arguments
+                self,
+                other._plant.ToScalarType[T](),
+                contact=other._contact,
+                params=other._params,
+                converter=converter,
             )
 
         # --- accessors ---------------------------------------------------------------
@@ -304,7 +314,7 @@ def SensorFaultDetector_(T):
         @property
         def detection_delay(self) -> float:
             """The longest delay from a fault's onset to its flag, s: N + 1 samples."""
-            return (max(STUCK_SAMPLES, IMPLAUSIBLE_SAMPLES) + 1) * self._period
+            return detection_delay(self._period)
 
         def set_reading(self, context, reading: float) -> None:
             """Starts the monitor with `reading` as the previous and held value."""

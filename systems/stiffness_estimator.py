@@ -35,16 +35,16 @@ constant as output, as the gain schedule is frozen at an equilibrium.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from pydrake.autodiffutils import AutoDiffXd
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from admittance.systems.planar_kinematics import PLANAR_COORDINATES
-from admittance.systems.spatial_kinematics import frame_kinematics
+from admittance.systems.contact_frame import ContactFrame
 
-__all__ = ["StiffnessEstimator", "StiffnessEstimator_"]
+__all__ = ["StiffnessEstimator", "StiffnessEstimatorParams", "StiffnessEstimator_"]
 
 # Per-sample gains of the log-scale update toward a stiffer and a softer observation, and
 # the largest step toward a stiffer one (a factor).
@@ -68,6 +68,28 @@ def _positive(name: str, value: float) -> float:
 
 def _value(x) -> float:
     return float(x) if isinstance(x, float | int) else float(x.value())
+
+
+@dataclass(frozen=True)
+class StiffnessEstimatorParams:
+    """The estimator's numbers (``StiffnessEstimator``).
+
+    Attributes:
+        period: T, the sample period (the sensor's), s.
+        prior_stiffness: k_prior, the estimate before any contact, N/m.
+        contact_force: F_c, the threshold of contact, N.
+        informative_force: dF_min, N.
+        frozen_estimate: None, or a constant estimate (N/m) for analysis.
+        latch_stiffness: once the estimate has been above it (a wall stiffer than
+            stated), it never falls below the highest value it reached, N/m.
+    """
+
+    period: float
+    prior_stiffness: float
+    contact_force: float
+    informative_force: float
+    frozen_estimate: float | None = None
+    latch_stiffness: float = math.inf
 
 
 def update_estimate(
@@ -137,61 +159,31 @@ def StiffnessEstimator_(T):
             self,
             plant,
             *,
-            frame_name: str = "fingertip",
-            period: float,
-            prior_stiffness: float,
-            contact_force: float,
-            informative_force: float,
-            normal_axis: int = 0,
-            frozen_estimate: float | None = None,
-            latch_stiffness: float = math.inf,
-            coordinates=PLANAR_COORDINATES,
-            expressed_in: str = "world",
+            contact: ContactFrame,
+            params: StiffnessEstimatorParams,
             converter=None,
         ) -> None:
             """
             Args:
                 plant: finalized MultibodyPlant_[T] of the arm.
-                frame_name: the contact frame.
-                period: T, the sample period (the sensor's), s.
-                prior_stiffness: k_prior, the estimate before any contact, N/m.
-                contact_force: F_c, the threshold of contact, N.
-                informative_force: dF_min, N.
-                normal_axis: the wall normal's index in X = (x, y, theta).
-                frozen_estimate: None, or a constant estimate (N/m) for analysis.
-                latch_stiffness: once the estimate has been above it (a wall stiffer
-                    than stated), it never falls below the highest value it reached, N/m.
-                coordinates, expressed_in: the task vector X and its frame (the planar
-                    arm's x, y, theta in world by default; the spatial arm's tool tip).
+                contact: the contact frame, its task vector X and the normal's index in X.
+                params: the estimator's numbers.
             """
             LeafSystem_[T].__init__(self, converter=converter)
             self._plant = plant
-            self._arguments = dict(
-                frame_name=frame_name,
-                period=period,
-                prior_stiffness=prior_stiffness,
-                contact_force=contact_force,
-                informative_force=informative_force,
-                normal_axis=normal_axis,
-                frozen_estimate=frozen_estimate,
-                latch_stiffness=latch_stiffness,
-                coordinates=tuple(coordinates),
-                expressed_in=expressed_in,
-            )
-            if not latch_stiffness > 0:
-                raise ValueError(f"latch_stiffness must be > 0, got {latch_stiffness}")
-            self._latch = math.log(latch_stiffness)
-            self._period = _positive("period", period)
-            self._prior = _positive("prior_stiffness", prior_stiffness)
-            self._contact_force = _positive("contact_force", contact_force)
-            self._informative_force = _positive("informative_force", informative_force)
-            self._normal_axis = int(normal_axis)
-            self._frozen = (
-                None if frozen_estimate is None else _positive("frozen_estimate", frozen_estimate)
-            )
-            self._kinematics = frame_kinematics(
-                plant, frame_name, coordinates=coordinates, expressed_in=expressed_in
-            )
+            self._contact = contact
+            self._params = params
+            if not params.latch_stiffness > 0:
+                raise ValueError(f"latch_stiffness must be > 0, got {params.latch_stiffness}")
+            self._latch = math.log(params.latch_stiffness)
+            self._period = _positive("period", params.period)
+            self._prior = _positive("prior_stiffness", params.prior_stiffness)
+            self._contact_force = _positive("contact_force", params.contact_force)
+            self._informative_force = _positive("informative_force", params.informative_force)
+            self._normal_axis = contact.normal_axis
+            frozen = params.frozen_estimate
+            self._frozen = None if frozen is None else _positive("frozen_estimate", frozen)
+            self._kinematics = contact.kinematics(plant)
             nx = plant.num_positions() + plant.num_velocities()
             self.measured_force_input = self.DeclareVectorInputPort("measured_force", 1)
             self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", nx)
@@ -212,7 +204,11 @@ def StiffnessEstimator_(T):
 
         def _construct_copy(self, other, converter=None) -> None:
             Impl._construct(
-                self, other._plant.ToScalarType[T](), converter=converter, **other._arguments
+                self,
+                other._plant.ToScalarType[T](),
+                contact=other._contact,
+                params=other._params,
+                converter=converter,
             )
 
         @property

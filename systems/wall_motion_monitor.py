@@ -39,7 +39,7 @@ from pydrake.autodiffutils import AutoDiffXd
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
+from admittance.systems.contact_frame import ContactFrame
 
 __all__ = ["WallMotionMonitor", "WallMotionMonitor_", "approach_evidence"]
 
@@ -102,21 +102,19 @@ def WallMotionMonitor_(T):
             self,
             plant,
             *,
-            frame_name: str = "fingertip",
+            contact: ContactFrame,
             period: float,
             noise_std: float,
             contact_force: float,
-            normal_axis: int = 0,
             converter=None,
         ) -> None:
             """
             Args:
                 plant: finalized MultibodyPlant_[T] of the arm.
-                frame_name: the contact frame.
+                contact: the contact frame, its task vector X and the normal's index in X.
                 period: T, the sample period (the sensor's), s.
                 noise_std: sigma, the reading's noise, N (>= 0).
                 contact_force: F_c, the threshold of contact, N.
-                normal_axis: the wall normal's index in X = (x, y, theta).
             """
             LeafSystem_[T].__init__(self, converter=converter)
             for name, value, least in (
@@ -129,19 +127,16 @@ def WallMotionMonitor_(T):
                 raise ValueError(f"noise_std must be >= 0, got {noise_std}")
             self._plant = plant
             self._arguments = dict(
-                frame_name=frame_name,
+                contact=contact,
                 period=float(period),
                 noise_std=float(noise_std),
                 contact_force=float(contact_force),
-                normal_axis=int(normal_axis),
             )
             self._period = float(period)
             self._noise = float(noise_std)
             self._contact_force = float(contact_force)
-            self._normal_axis = int(normal_axis)
-            self._kinematics = PlanarFrameKinematics(
-                plant, frame_name, coordinates=PLANAR_COORDINATES
-            )
+            self._normal_axis = contact.normal_axis
+            self._kinematics = contact.kinematics(plant)
             nq, nv = plant.num_positions(), plant.num_velocities()
             self._num_positions = nq
             self.measured_force_input = self.DeclareVectorInputPort("measured_force", 1)

@@ -28,8 +28,10 @@ from admittance.diagrams.robots.planar_arm.run import run_scenario
 from admittance.diagrams.robots.planar_arm.safety_layer import STOP_SPEED
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.diagrams.scenario.schema import ScenarioError
+from admittance.systems.contact_frame import ContactFrame
 from admittance.systems.fault_detector import (
     FAULT_FLAGS,
+    FaultDetectorParams,
     SensorFaultDetector,
     collision_tolerance,
     unexplained_torque,
@@ -74,12 +76,15 @@ def test_a_torque_along_j_is_explained_and_one_orthogonal_to_it_is_not(arm_plant
 def _monitor(arm_plant):
     detector = SensorFaultDetector(
         arm_plant,
-        period=PERIOD,
-        noise_std=0.02,
-        saturation_force=111.03,
-        contact_force=0.5,
-        force_tolerance=TOLERANCE,
-        observer_gain=OBSERVER_GAIN,
+        contact=ContactFrame(frame_name="fingertip", coordinates=PLANAR_COORDINATES, normal_axis=0),
+        params=FaultDetectorParams(
+            period=PERIOD,
+            noise_std=0.02,
+            saturation_force=111.03,
+            contact_force=0.5,
+            force_tolerance=TOLERANCE,
+            observer_gain=OBSERVER_GAIN,
+        ),
     )
     context = detector.CreateDefaultContext()
     q, jacobian = _normal_row(arm_plant)

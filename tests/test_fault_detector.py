@@ -4,14 +4,17 @@ before the fault."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
 from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
+from admittance.systems.contact_frame import ContactFrame
 from admittance.systems.fault_detector import (
     FAULT_FLAGS,
+    FaultDetectorParams,
     SensorFaultDetector,
     plausibility_allowance,
 )
@@ -21,20 +24,24 @@ PERIOD = 0.005
 NOISE = 0.02
 FULL_SCALE = 111.03
 TOLERANCE = 1.0 + 6 * NOISE  # 0.2 Fr + 6 sigma, as the layer sets it for Fr = 5 N
+# The fingertip, X = (x, y, theta) in world, the wall's normal x.
+TIP = ContactFrame(frame_name="fingertip", coordinates=PLANAR_COORDINATES, normal_axis=0)
+# The monitor of these tests: T = 5 ms, sigma = 0.02 N, F_c = 0.5 N, K_o = 100 1/s.
+DETECTOR = FaultDetectorParams(
+    period=PERIOD,
+    noise_std=NOISE,
+    saturation_force=FULL_SCALE,
+    contact_force=0.5,
+    force_tolerance=TOLERANCE,
+    observer_gain=100.0,
+)
 
 
 def _detector(arm_plant, **overrides):
-    """The monitor of these tests: T = 5 ms, sigma = 0.02 N, F_c = 0.5 N, K_o = 100 1/s."""
-    arguments = dict(
-        period=PERIOD,
-        noise_std=NOISE,
-        saturation_force=FULL_SCALE,
-        contact_force=0.5,
-        force_tolerance=TOLERANCE,
-        observer_gain=100.0,
+    """The monitor of these tests (DETECTOR), with `overrides`."""
+    return SensorFaultDetector(
+        arm_plant, contact=TIP, params=dataclasses.replace(DETECTOR, **overrides)
     )
-    arguments.update(overrides)
-    return SensorFaultDetector(arm_plant, **arguments)
 
 
 def _at_the_pose(arm_plant, detector, tip_velocity=(0.0, 0.0, 0.0)):

@@ -23,7 +23,7 @@ from admittance.diagrams.loop.layer_systems import (
     CONTACT_SHARE,
     AddLayerSystems,
     LayerNumbers,
-    law_arguments,
+    law_params,
 )
 from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
 from admittance.diagrams.robots.planar_arm.plant import ArmModel
@@ -35,6 +35,7 @@ from admittance.diagrams.run.safety_metrics import (
 )
 from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.systems.contact_force_observer import ContactForceObserver
+from admittance.systems.contact_frame import ContactFrame
 from admittance.systems.fault_detector import SensorFaultDetector
 from admittance.systems.flexiforce import FlexiForceSensor
 from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
@@ -199,16 +200,18 @@ def AddSafetyLayer(
     sensor = FlexiForceSensor(
         kind=scenario.sensor.kind, filter_cutoff_hz=scenario.sensor.filter_cutoff
     )
+    reading_period = scenario.sensor.noise_period
     numbers = LayerNumbers(
+        contact=ContactFrame(
+            frame_name=frame, coordinates=PLANAR_COORDINATES, normal_axis=NORMAL_AXIS
+        ),
         force_reference=scenario.force_reference,
         noise=expected_noise(scenario),
-        contact_force=contact_force_threshold(scenario),
-        reading_period=scenario.sensor.noise_period,
+        reading_period=reading_period,
         saturation_force=sensor.saturation_force,
-        max_stiffness=safety.max_stiffness,
         frozen=analysis,
         frozen_estimate=scenario.wall.stiffness if analysis else None,
-        law=law_arguments(
+        law=law_params(
             admittance,
             safety,
             kp=pid_config.kp[NORMAL_AXIS],
@@ -218,20 +221,22 @@ def AddSafetyLayer(
             filter_time_constant=sensor.filter_time_constant if sensor.kind != "ideal" else 0.0,
             period=admittance.period,
             latency=scenario.sensor.latency,
-            num_axes=3,
+            contact_force=contact_force_threshold(scenario),
+            reading_period=reading_period,
         ),
     )
     # The law's model of the arm: the plant as built (reflected inertia included when the
     # scenario has it), without a payload the simulated arm carries (arm.payload_mass):
     # the layer knows of one only through safety.payload_mass.
     model = plant if scenario.arm.payload_mass == 0.0 else ArmModel(scenario.arm)
-    tip = dict(frame_name=frame, normal_axis=NORMAL_AXIS)
-    observer, detector, estimator, law = AddLayerSystems(builder, plant, model, pid, tip, numbers)
+    observer, detector, estimator, law = AddLayerSystems(builder, plant, model, pid, numbers)
     builder.Connect(trajectory.desired_velocity_output, law.desired_velocity_input)
     monitor = (
         None
         if analysis
-        else _AddWallMotionMonitor(builder, scenario, plant, law, detector, estimator)
+        else _AddWallMotionMonitor(
+            builder, scenario, numbers.contact, plant, law, detector, estimator
+        )
     )
     return SafetyLayer(
         law=law,
@@ -262,17 +267,18 @@ def sampled_damper_gain(plant, frame_name: str, state, kd, period: float) -> flo
     return float(period * np.max(np.linalg.eigvals(mobility @ np.diag(kd)).real))
 
 
-def _AddWallMotionMonitor(builder, scenario, plant, law, detector, estimator) -> WallMotionMonitor:
-    """The approaching wall's monitor, wired from the trusted reading and the estimate to
-    the law (docs/safety.md, section 7)."""
+def _AddWallMotionMonitor(
+    builder, scenario, contact: ContactFrame, plant, law, detector, estimator
+) -> WallMotionMonitor:
+    """The approaching wall's monitor at the layer's contact, wired from the trusted
+    reading and the estimate to the law (docs/safety.md, section 7)."""
     monitor = builder.AddSystem(
         WallMotionMonitor(
             plant,
-            frame_name=scenario.arm.fingertip_frame,
+            contact=contact,
             period=scenario.sensor.noise_period,
             noise_std=expected_noise(scenario),
             contact_force=contact_force_threshold(scenario),
-            normal_axis=NORMAL_AXIS,
         )
     )
     monitor.set_name("wall_motion_monitor")
