@@ -13,7 +13,8 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.analysis import Simulator
 
-from admittance.systems.cartesian_pid import CartesianPid, CartesianPidLaw
+from admittance.systems.cartesian_pid import CartesianPid
+from admittance.systems.cartesian_pid_law import CartesianPidLaw
 from admittance.systems.planar_kinematics import PLANAR_COORDINATES
 from admittance.urdf import PLANAR_ARM_URDF
 

@@ -28,14 +28,9 @@ from admittance.diagrams.robots.planar_arm.run import run_scenario
 from admittance.diagrams.robots.planar_arm.safety_layer import STOP_SPEED
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.diagrams.scenario.schema import ScenarioError
+from admittance.systems.collision_check import collision_tolerance, unexplained_torque
 from admittance.systems.contact_frame import ContactFrame
-from admittance.systems.fault_detector import (
-    FAULT_FLAGS,
-    FaultDetectorParams,
-    SensorFaultDetector,
-    collision_tolerance,
-    unexplained_torque,
-)
+from admittance.systems.fault_detector import FAULT_FLAGS, FaultDetectorParams, SensorFaultDetector
 from admittance.systems.joint_torque_fault import JointTorqueFault, JointTorqueFault_
 from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 

@@ -39,7 +39,8 @@ from admittance.systems.planar_kinematics import PlanarKinematics
 from admittance.systems.sensor_fault import SensorFault
 from admittance.systems.spatial_kinematics import SpatialKinematics
 from admittance.systems.task_kinematics import TaskKinematics, has_rotation_vector
-from admittance.systems.wrench_sensor import WrenchInControlFrame, WrenchSensor
+from admittance.systems.wrench_in_control_frame import WrenchInControlFrame
+from admittance.systems.wrench_sensor import WrenchSensor
 
 __all__ = [
     "AddCommandedPosition",
