@@ -14,9 +14,8 @@ so tau_ext = J^T (-F e_n) and the estimate of the compressive contact force is
 
     F_hat = -(J^-T r)_n,
 
-J the Jacobian of the task coordinates (``coordinates`` in ``expressed_in``, as
-systems/planar_kinematics.py and systems/spatial_kinematics.py take them) and n the
-normal's index in X; for a redundant arm J^-T is the least-squares solve.
+J the Jacobian of the contact frame's task coordinates and n the normal's index in X
+(systems/contact_frame.py); for a redundant arm J^-T is the least-squares solve.
 
 **C(q, v)^T v** is the Lagrangian's dT/dq at fixed v (T = v^T M(q) v / 2, for q' = v), so
 that p' = tau + tau_g + dT/dq + tau_ext. It is computed as dM/dt v - C(q, v) v (from
@@ -42,8 +41,7 @@ from pydrake.autodiffutils import AutoDiffXd
 from pydrake.systems.framework import LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from admittance.systems.planar_kinematics import PLANAR_COORDINATES
-from admittance.systems.spatial_kinematics import frame_kinematics
+from admittance.systems.contact_frame import ContactFrame
 
 __all__ = ["ContactForceObserver", "ContactForceObserver_", "velocity_product"]
 
@@ -78,162 +76,159 @@ def velocity_product(plant, context, shifted_context):
     return mass_rate @ v - plant.CalcBiasTerm(context)
 
 
+class _ContactForceObserver:
+    """Momentum observer of the contact force along the wall normal (module docstring).
+
+    State: p_I (nv). Outputs: F_hat, N (compressive positive), and r, N m. F_hat is an
+    estimate for monitoring: for AutoDiffXd it carries the value only.
+
+    .. pydrake_system::
+
+        name: ContactForceObserver
+        input_ports:
+        - estimated_state
+        - actuation
+        output_ports:
+        - contact_force
+        - external_torque
+    """
+
+    def _construct(
+        self,
+        plant,
+        *,
+        contact: ContactFrame,
+        gain: float = 100.0,
+        coriolis: bool = True,
+        period: float = 0.0,
+        converter=None,
+    ) -> None:
+        """
+        Args:
+            plant: finalized MultibodyPlant_[T] of the arm.
+            contact: the contact frame, its task vector X and the normal's index in X.
+            gain: K_o, the observer's bandwidth, 1/s (> 0).
+            coriolis: integrate C(q, v)^T v (False: the observer without it, for the
+                comparison of docs/safety.md).
+            period: 0 integrates p_I continuously; > 0 steps it by Euler once per
+                period, s (a sampled loop's tick: K_o period must stay below 2).
+        """
+        LeafSystem_[self._T].__init__(self, converter=converter)
+        if not (math.isfinite(gain) and gain > 0):
+            raise ValueError(f"gain must be > 0 1/s, got {gain}")
+        if not (math.isfinite(period) and 0 <= period and gain * period < 2):
+            raise ValueError(f"period must be >= 0 s with gain x period < 2, got {period}")
+        self._period = float(period)
+        self._plant = plant
+        self._contact = contact
+        self._gain = float(gain)
+        self._normal_axis = contact.normal_axis
+        self._coriolis = bool(coriolis)
+        self._kinematics = contact.kinematics(plant)
+        self._shifted_context = plant.CreateDefaultContext()
+        nq, nv = plant.num_positions(), plant.num_velocities()
+        self._num_positions = nq
+        self._actuation_matrix = plant.MakeActuationMatrix()
+        self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", nq + nv)
+        self.actuation_input = self.DeclareVectorInputPort("actuation", plant.num_actuated_dofs())
+        if self._period > 0:
+            self.DeclareDiscreteState(nv)
+            self.DeclarePeriodicDiscreteUpdateEvent(
+                period_sec=self._period, offset_sec=0.0, update=self._DiscreteUpdate
+            )
+            integral_ticket = self.xd_ticket()
+        else:
+            self.DeclareContinuousState(nv)
+            integral_ticket = self.xc_ticket()
+        self.contact_force_output = self.DeclareVectorOutputPort(
+            "contact_force",
+            1,
+            self._CalcContactForce,
+            prerequisites_of_calc={integral_ticket, self.estimated_state_input.ticket()},
+        )
+        self.external_torque_output = self.DeclareVectorOutputPort(
+            "external_torque",
+            nv,
+            lambda context, output: output.SetFromVector(self._residual(context)),
+            prerequisites_of_calc={integral_ticket, self.estimated_state_input.ticket()},
+        )
+
+    def _construct_copy(self, other, converter=None) -> None:
+        _ContactForceObserver._construct(
+            self,
+            other._plant.ToScalarType[self._T](),
+            contact=other._contact,
+            gain=other._gain,
+            coriolis=other._coriolis,
+            period=other._period,
+            converter=converter,
+        )
+
+    @property
+    def gain(self) -> float:
+        return self._gain
+
+    def _momentum(self, context):
+        """M(q) v at the context's state; leaves the kinematics set to that state."""
+        state = self.estimated_state_input.Eval(context)
+        self._kinematics.set_state(state)
+        mass_matrix = self._plant.CalcMassMatrix(self._kinematics.context)
+        return mass_matrix @ state[self._num_positions :]
+
+    def _integral(self, context):
+        """p_I, the observer's state (continuous, or discrete with a period)."""
+        if self._period > 0:
+            return context.get_discrete_state_vector().CopyToVector()
+        return context.get_continuous_state_vector().CopyToVector()
+
+    def _residual(self, context):
+        """r = K_o (M v - p_I) at the context's state and input."""
+        momentum = self._momentum(context)
+        return self._gain * (momentum - self._integral(context))
+
+    def set_external_torque(self, context, external_torque) -> None:
+        """Sets p_I so that r equals `external_torque` at the context's state (warm start)."""
+        integral = self._momentum(context) - np.asarray(external_torque) / self._gain
+        if self._period > 0:
+            context.SetDiscreteState(integral)
+        else:
+            context.SetContinuousState(integral)
+
+    def _rate(self, context):
+        """dp_I/dt = tau + tau_g + C(q, v)^T v + r at the context's state and input."""
+        residual = self._residual(context)
+        torque = self._actuation_matrix @ self.actuation_input.Eval(context)
+        plant_context = self._kinematics.context
+        rate = torque + self._plant.CalcGravityGeneralizedForces(plant_context) + residual
+        if self._coriolis:
+            rate = rate + velocity_product(self._plant, plant_context, self._shifted_context)
+        return rate
+
+    def DoCalcTimeDerivatives(self, context, derivatives) -> None:
+        derivatives.get_mutable_vector().SetFromVector(self._rate(context))
+
+    def _DiscreteUpdate(self, context, discrete_state) -> None:
+        discrete_state.set_value(self._integral(context) + self._period * self._rate(context))
+
+    def _CalcContactForce(self, context, output) -> None:
+        T = self._T
+        residual = self._residual(context)  # sets the kinematics to the context's state
+        jacobian = self._kinematics.jacobian()
+        if T is not float:
+            residual = np.array([r.value() for r in residual])
+            jacobian = np.array([[j.value() for j in row] for row in jacobian])
+        wrench = np.linalg.lstsq(jacobian.T, residual, rcond=None)[0]
+        output.SetFromVector([T(-wrench[self._normal_axis])])
+
+
 @TemplateSystem.define("ContactForceObserver_", T_list=[float, AutoDiffXd])
 def ContactForceObserver_(T):
-    class Impl(LeafSystem_[T]):
-        """Momentum observer of the contact force along the wall normal (module docstring).
-
-        State: p_I (nv). Outputs: F_hat, N (compressive positive), and r, N m. F_hat is an
-        estimate for monitoring: for AutoDiffXd it carries the value only.
-
-        .. pydrake_system::
-
-            name: ContactForceObserver
-            input_ports:
-            - estimated_state
-            - actuation
-            output_ports:
-            - contact_force
-            - external_torque
-        """
-
-        def _construct(
-            self,
-            plant,
-            *,
-            frame_name: str = "fingertip",
-            gain: float = 100.0,
-            normal_axis: int = 0,
-            coordinates=PLANAR_COORDINATES,
-            expressed_in: str = "world",
-            coriolis: bool = True,
-            period: float = 0.0,
-            converter=None,
-        ) -> None:
-            """
-            Args:
-                plant: finalized MultibodyPlant_[T] of the arm.
-                frame_name: the contact frame.
-                gain: K_o, the observer's bandwidth, 1/s (> 0).
-                normal_axis: the contact normal's index in X.
-                coordinates: the task vector X (x, y, theta by default; the spatial
-                    arm's x, y, z, rx, ry, rz), names among TASK_COORDINATES.
-                expressed_in: the frame X is measured and expressed in.
-                coriolis: integrate C(q, v)^T v (False: the observer without it, for the
-                    comparison of docs/safety.md).
-                period: 0 integrates p_I continuously; > 0 steps it by Euler once per
-                    period, s (a sampled loop's tick: K_o period must stay below 2).
-            """
-            LeafSystem_[T].__init__(self, converter=converter)
-            if not (math.isfinite(gain) and gain > 0):
-                raise ValueError(f"gain must be > 0 1/s, got {gain}")
-            if not (math.isfinite(period) and 0 <= period and gain * period < 2):
-                raise ValueError(f"period must be >= 0 s with gain x period < 2, got {period}")
-            self._period = float(period)
-            self._plant = plant
-            self._frame_name = frame_name
-            self._gain = float(gain)
-            self._normal_axis = int(normal_axis)
-            self._task = dict(coordinates=tuple(coordinates), expressed_in=expressed_in)
-            self._coriolis = bool(coriolis)
-            self._kinematics = frame_kinematics(plant, frame_name, **self._task)
-            self._shifted_context = plant.CreateDefaultContext()
-            nq, nv = plant.num_positions(), plant.num_velocities()
-            self._num_positions = nq
-            self._actuation_matrix = plant.MakeActuationMatrix()
-            self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", nq + nv)
-            self.actuation_input = self.DeclareVectorInputPort(
-                "actuation", plant.num_actuated_dofs()
-            )
-            if self._period > 0:
-                self.DeclareDiscreteState(nv)
-                self.DeclarePeriodicDiscreteUpdateEvent(
-                    period_sec=self._period, offset_sec=0.0, update=self._DiscreteUpdate
-                )
-                integral_ticket = self.xd_ticket()
-            else:
-                self.DeclareContinuousState(nv)
-                integral_ticket = self.xc_ticket()
-            self.contact_force_output = self.DeclareVectorOutputPort(
-                "contact_force",
-                1,
-                self._CalcContactForce,
-                prerequisites_of_calc={integral_ticket, self.estimated_state_input.ticket()},
-            )
-            self.external_torque_output = self.DeclareVectorOutputPort(
-                "external_torque",
-                nv,
-                lambda context, output: output.SetFromVector(self._residual(context)),
-                prerequisites_of_calc={integral_ticket, self.estimated_state_input.ticket()},
-            )
-
-        def _construct_copy(self, other, converter=None) -> None:
-            Impl._construct(
-                self,
-                other._plant.ToScalarType[T](),
-                frame_name=other._frame_name,
-                gain=other._gain,
-                normal_axis=other._normal_axis,
-                coriolis=other._coriolis,
-                period=other._period,
-                converter=converter,
-                **other._task,
-            )
-
-        @property
-        def gain(self) -> float:
-            return self._gain
-
-        def _momentum(self, context):
-            """M(q) v at the context's state; leaves the kinematics set to that state."""
-            state = self.estimated_state_input.Eval(context)
-            self._kinematics.set_state(state)
-            mass_matrix = self._plant.CalcMassMatrix(self._kinematics.context)
-            return mass_matrix @ state[self._num_positions :]
-
-        def _integral(self, context):
-            """p_I, the observer's state (continuous, or discrete with a period)."""
-            if self._period > 0:
-                return context.get_discrete_state_vector().CopyToVector()
-            return context.get_continuous_state_vector().CopyToVector()
-
-        def _residual(self, context):
-            """r = K_o (M v - p_I) at the context's state and input."""
-            momentum = self._momentum(context)
-            return self._gain * (momentum - self._integral(context))
-
-        def set_external_torque(self, context, external_torque) -> None:
-            """Sets p_I so that r equals `external_torque` at the context's state (warm start)."""
-            integral = self._momentum(context) - np.asarray(external_torque) / self._gain
-            if self._period > 0:
-                context.SetDiscreteState(integral)
-            else:
-                context.SetContinuousState(integral)
-
-        def _rate(self, context):
-            """dp_I/dt = tau + tau_g + C(q, v)^T v + r at the context's state and input."""
-            residual = self._residual(context)
-            torque = self._actuation_matrix @ self.actuation_input.Eval(context)
-            plant_context = self._kinematics.context
-            rate = torque + self._plant.CalcGravityGeneralizedForces(plant_context) + residual
-            if self._coriolis:
-                rate = rate + velocity_product(self._plant, plant_context, self._shifted_context)
-            return rate
-
-        def DoCalcTimeDerivatives(self, context, derivatives) -> None:
-            derivatives.get_mutable_vector().SetFromVector(self._rate(context))
-
-        def _DiscreteUpdate(self, context, discrete_state) -> None:
-            discrete_state.set_value(self._integral(context) + self._period * self._rate(context))
-
-        def _CalcContactForce(self, context, output) -> None:
-            residual = self._residual(context)  # sets the kinematics to the context's state
-            jacobian = self._kinematics.jacobian()
-            if T is not float:
-                residual = np.array([r.value() for r in residual])
-                jacobian = np.array([[j.value() for j in row] for row in jacobian])
-            wrench = np.linalg.lstsq(jacobian.T, residual, rcond=None)[0]
-            output.SetFromVector([T(-wrench[self._normal_axis])])
+    class Impl(_ContactForceObserver, LeafSystem_[T]):
+        __doc__ = _ContactForceObserver.__doc__
+        _T = T
+        # TemplateSystem looks for them in the class itself.
+        _construct = _ContactForceObserver._construct
+        _construct_copy = _ContactForceObserver._construct_copy
 
     return Impl
 

@@ -37,13 +37,13 @@ class DesiredTrajectory(Diagram):
         self,
         *,
         center: Sequence[float],
-        amplitude: Sequence[float] = (0.0, 0.0, 0.0),
+        amplitude: float | Sequence[float] = 0.0,
         frequency: float = 0.0,
     ) -> None:
         """
         Args:
-            center: (x m, y m, theta rad) about which the trajectory oscillates.
-            amplitude: oscillation amplitude per axis, same units.
+            center: the point of X (m, rad) about which the trajectory oscillates.
+            amplitude: oscillation amplitude per axis, same units (one value: every axis).
             frequency: oscillation frequency, Hz (>= 0).
         """
         Diagram.__init__(self)

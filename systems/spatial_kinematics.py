@@ -23,8 +23,9 @@ The functions below run on Python floats and on AutoDiffXd alike; the branch is 
 on the value, as the derivative of each branch is the function's own.
 
 * ``SpatialFrameKinematics`` asks the plant (any scalar type) through a private context;
-* ``SpatialKinematics`` is the LeafSystem with the ``kinematics`` output of
-  ``PlanarKinematics`` ([X; dX/dt; J row by row], m x nv), float and AutoDiffXd;
+* ``SpatialKinematics`` is the LeafSystem with the ``kinematics`` output of every task
+  kinematics ([X; dX/dt; J row by row], m x nv; systems/task_kinematics.py), float and
+  AutoDiffXd;
 * ``frame_kinematics`` picks the planar or the spatial class for a set of coordinates.
 """
 
@@ -38,12 +39,12 @@ from pydrake.math import atan2, cos, sin, sqrt
 from pydrake.systems.framework import LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from admittance.systems.planar_kinematics import (
+from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.task_kinematics import (
     ROTATION_COORDINATES,
-    PlanarFrameKinematics,
-    PlanarKinematics_,
+    TaskFrameKinematics,
+    TaskKinematics,
     has_rotation_vector,
-    kinematics_size,
     task_coordinates,
 )
 
@@ -169,15 +170,15 @@ def orientation_error(commanded, measured) -> list:
     )
 
 
-class SpatialFrameKinematics(PlanarFrameKinematics):
-    """``PlanarFrameKinematics`` whose coordinates may hold the rotation vector of R_EF.
+class SpatialFrameKinematics(TaskFrameKinematics):
+    """The task vector X of a frame whose coordinates may hold the rotation vector of R_EF.
 
     X is read in the order of the coordinates; the rows of J for rx, ry, rz are F's
-    angular velocity in E (``PlanarFrameKinematics.jacobian``).
+    angular velocity in E (``TaskFrameKinematics.jacobian``).
     """
 
-    def __init__(self, plant, frame_name: str, **task) -> None:
-        super().__init__(plant, frame_name, **task)
+    def __init__(self, plant, frame_name: str, *, coordinates, expressed_in: str = "world") -> None:
+        super().__init__(plant, frame_name, coordinates=coordinates, expressed_in=expressed_in)
         # Where each coordinate is in (x, y, z, rx, ry, rz).
         self._pose_indices = [SPATIAL_COORDINATES.index(c) for c in self.coordinates]
 
@@ -196,79 +197,86 @@ def frame_kinematics(plant, frame_name: str, *, coordinates, expressed_in: str =
     return kind(plant, frame_name, coordinates=coordinates, expressed_in=expressed_in)
 
 
+class _SpatialKinematics(TaskKinematics):
+    """The spatial task-space kinematics of a frame of a plant (paper eq. 1-2).
+
+        X = (p_EF, log(R_EF))         in the order of ``coordinates``
+        dX/dt = J(q) v                (its rotation rows: omega_EF_E)
+        J = rows of J_EF_E            (m x nv, with respect to the velocities v)
+
+    output as one vector ``kinematics`` = [X; dX/dt; J row by row], of length
+    2 m + m nv, the layout of every task kinematics (whose ports, accessors and checks
+    it shares: systems/task_kinematics.py; ``split_kinematics`` takes the vector apart).
+    Computed from the plant (through its bindings) for double and AutoDiffXd, so that
+    linearizing the loop differentiates the plant's own kinematics.
+
+    .. pydrake_system::
+
+        name: SpatialKinematics
+        input_ports:
+        - estimated_state
+        output_ports:
+        - kinematics
+    """
+
+    def _construct(
+        self,
+        plant,
+        *,
+        frame_name: str,
+        coordinates,
+        expressed_in: str = "world",
+        generated: bool = False,
+        converter=None,
+    ) -> None:
+        """
+        Args:
+            plant: finalized MultibodyPlant_[T] (an arm, with anything else in it).
+            frame_name: the frame whose motion is output (the tool frame).
+            coordinates: the task vector X, names among TASK_COORDINATES (not theta).
+            expressed_in: the control frame E X is measured and expressed in (one that
+                does not move, e.g. welded to the world at the planned surface).
+            generated: False (the plant's bindings; no generated code for a rotation
+                vector, whose branches have no single expression).
+        """
+        LeafSystem_[self._T].__init__(self, converter=converter)
+        coordinates = task_coordinates(coordinates)
+        if "theta" in coordinates:
+            raise ValueError(
+                "coordinates: theta is the planar arm's angle (PlanarKinematics); a "
+                f"spatial task uses {ROTATION_COORDINATES}, got {coordinates}"
+            )
+        if generated:
+            raise ValueError("SpatialKinematics has no generated code: generated=False")
+        self._kinematics = SpatialFrameKinematics(
+            plant, frame_name, coordinates=coordinates, expressed_in=expressed_in
+        )
+        self._declare_kinematics(
+            plant,
+            frame_name=frame_name,
+            coordinates=coordinates,
+            expressed_in=expressed_in,
+            generated=False,
+            calc=None,
+        )
+
+    def _construct_copy(self, other, converter=None) -> None:
+        _SpatialKinematics._construct(
+            self,
+            other._plant.ToScalarType[self._T](),
+            converter=converter,
+            **other._copy_arguments(),
+        )
+
+
 @TemplateSystem.define("SpatialKinematics_", T_list=[float, AutoDiffXd])
 def SpatialKinematics_(T):
-    class Impl(PlanarKinematics_[T]):
-        """The spatial task-space kinematics of a frame of a plant (paper eq. 1-2).
-
-            X = (p_EF, log(R_EF))         in the order of ``coordinates``
-            dX/dt = J(q) v                (its rotation rows: omega_EF_E)
-            J = rows of J_EF_E            (m x nv, with respect to the velocities v)
-
-        output as one vector ``kinematics`` = [X; dX/dt; J row by row], of length
-        2 m + m nv, the layout of ``PlanarKinematics`` (whose ports, accessors and checks
-        it shares; ``split_kinematics`` takes the vector apart). Computed from the plant
-        (through its bindings) for double and AutoDiffXd, so that linearizing the loop
-        differentiates the plant's own kinematics.
-
-        .. pydrake_system::
-
-            name: SpatialKinematics
-            input_ports:
-            - estimated_state
-            output_ports:
-            - kinematics
-        """
-
-        def _construct(
-            self,
-            plant,
-            *,
-            frame_name: str,
-            coordinates=SPATIAL_COORDINATES,
-            expressed_in: str = "world",
-            generated: bool = False,
-            converter=None,
-        ) -> None:
-            """
-            Args:
-                plant: finalized MultibodyPlant_[T] (an arm, with anything else in it).
-                frame_name: the frame whose motion is output (the tool frame).
-                generated: False (the plant's bindings; no generated code for a rotation
-                    vector, whose branches have no single expression).
-                coordinates: the task vector X, names among TASK_COORDINATES (not theta).
-                expressed_in: the control frame E X is measured and expressed in (one that
-                    does not move, e.g. welded to the world at the planned surface).
-            """
-            LeafSystem_[T].__init__(self, converter=converter)
-            self._plant = plant
-            self._frame_name = frame_name
-            self._coordinates = task_coordinates(coordinates)
-            if "theta" in self._coordinates:
-                raise ValueError(
-                    "coordinates: theta is the planar arm's angle (PlanarKinematics); a "
-                    f"spatial task uses {ROTATION_COORDINATES}, got {self._coordinates}"
-                )
-            if generated:
-                raise ValueError("SpatialKinematics has no generated code: generated=False")
-            self._expressed_in = expressed_in
-            self._generated = False
-            self._kinematics = SpatialFrameKinematics(
-                plant, frame_name, coordinates=self._coordinates, expressed_in=expressed_in
-            )
-            self._num_positions = plant.num_positions()
-            self._num_velocities = plant.num_velocities()
-            num_states = self._num_positions + self._num_velocities
-            self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", num_states)
-            self.kinematics_output = self.DeclareVectorOutputPort(
-                "kinematics",
-                kinematics_size(self._num_velocities, len(self._coordinates)),
-                self._CalcFromPlant,
-                prerequisites_of_calc={self.estimated_state_input.ticket()},
-            )
-
-        # PlanarKinematics' copy calls this class's _construct (TemplateSystem wants it here).
-        _construct_copy = PlanarKinematics_[T]._construct_copy
+    class Impl(_SpatialKinematics, LeafSystem_[T]):
+        __doc__ = _SpatialKinematics.__doc__
+        _T = T
+        # TemplateSystem looks for them in the class itself.
+        _construct = _SpatialKinematics._construct
+        _construct_copy = _SpatialKinematics._construct_copy
 
     return Impl
 

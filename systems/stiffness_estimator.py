@@ -35,16 +35,16 @@ constant as output, as the gain schedule is frozen at an equilibrium.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from pydrake.autodiffutils import AutoDiffXd
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from admittance.systems.planar_kinematics import PLANAR_COORDINATES
-from admittance.systems.spatial_kinematics import frame_kinematics
+from admittance.systems.contact_frame import ContactFrame
 
-__all__ = ["StiffnessEstimator", "StiffnessEstimator_"]
+__all__ = ["StiffnessEstimator", "StiffnessEstimatorParams", "StiffnessEstimator_"]
 
 # Per-sample gains of the log-scale update toward a stiffer and a softer observation, and
 # the largest step toward a stiffer one (a factor).
@@ -68,6 +68,28 @@ def _positive(name: str, value: float) -> float:
 
 def _value(x) -> float:
     return float(x) if isinstance(x, float | int) else float(x.value())
+
+
+@dataclass(frozen=True)
+class StiffnessEstimatorParams:
+    """The estimator's numbers (``StiffnessEstimator``).
+
+    Attributes:
+        period: T, the sample period (the sensor's), s.
+        prior_stiffness: k_prior, the estimate before any contact, N/m.
+        contact_force: F_c, the threshold of contact, N.
+        informative_force: dF_min, N.
+        frozen_estimate: None, or a constant estimate (N/m) for analysis.
+        latch_stiffness: once the estimate has been above it (a wall stiffer than
+            stated), it never falls below the highest value it reached, N/m.
+    """
+
+    period: float
+    prior_stiffness: float
+    contact_force: float
+    informative_force: float
+    frozen_estimate: float | None = None
+    latch_stiffness: float = math.inf
 
 
 def update_estimate(
@@ -115,175 +137,157 @@ def update_estimate(
     return log_estimate, (position, force, onset)
 
 
+class _StiffnessEstimator:
+    """Sampled secant stiffness between anchor samples in contact (module docstring).
+
+    State (discrete, period T): [ln k_hat, x_a, F_a, onset, anchored]. Output: k_hat, N/m.
+
+    .. pydrake_system::
+
+        name: StiffnessEstimator
+        input_ports:
+        - measured_force
+        - estimated_state
+        - sensor_fault
+        output_ports:
+        - stiffness_estimate
+    """
+
+    def _construct(
+        self,
+        plant,
+        *,
+        contact: ContactFrame,
+        params: StiffnessEstimatorParams,
+        converter=None,
+    ) -> None:
+        """
+        Args:
+            plant: finalized MultibodyPlant_[T] of the arm.
+            contact: the contact frame, its task vector X and the normal's index in X.
+            params: the estimator's numbers.
+        """
+        T = self._T
+        LeafSystem_[T].__init__(self, converter=converter)
+        self._plant = plant
+        self._contact = contact
+        self._params = params
+        if not params.latch_stiffness > 0:
+            raise ValueError(f"latch_stiffness must be > 0, got {params.latch_stiffness}")
+        self._latch = math.log(params.latch_stiffness)
+        self._period = _positive("period", params.period)
+        self._prior = _positive("prior_stiffness", params.prior_stiffness)
+        self._contact_force = _positive("contact_force", params.contact_force)
+        self._informative_force = _positive("informative_force", params.informative_force)
+        self._normal_axis = contact.normal_axis
+        frozen = params.frozen_estimate
+        self._frozen = None if frozen is None else _positive("frozen_estimate", frozen)
+        self._kinematics = contact.kinematics(plant)
+        nx = plant.num_positions() + plant.num_velocities()
+        self.measured_force_input = self.DeclareVectorInputPort("measured_force", 1)
+        self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", nx)
+        self.sensor_fault_input = self.DeclareVectorInputPort("sensor_fault", 1)
+        if self._frozen is None:
+            self._state_index = self.DeclareDiscreteState(
+                BasicVector_[T](self._initial_state(self._prior))
+            )
+            self.DeclarePeriodicDiscreteUpdateEvent(
+                period_sec=self._period, offset_sec=0.0, update=self._Update
+            )
+            calc, ticket = self._CalcEstimate, self.xd_ticket()
+        else:
+            calc, ticket = self._CalcFrozen, self.nothing_ticket()
+        self.stiffness_estimate_output = self.DeclareVectorOutputPort(
+            "stiffness_estimate", 1, calc, prerequisites_of_calc={ticket}
+        )
+
+    def _construct_copy(self, other, converter=None) -> None:
+        _StiffnessEstimator._construct(
+            self,
+            other._plant.ToScalarType[self._T](),
+            contact=other._contact,
+            params=other._params,
+            converter=converter,
+        )
+
+    @property
+    def prior_stiffness(self) -> float:
+        return self._prior
+
+    @property
+    def contact_force(self) -> float:
+        return self._contact_force
+
+    def set_estimate(self, context, stiffness: float) -> None:
+        """Sets k_hat (N/m) and drops the anchor; the next contact starts from it."""
+        state = self._initial_state(_positive("stiffness", stiffness))
+        state[_FREE] = 0.0
+        context.get_mutable_discrete_state(self._state_index).SetFromVector(state)
+
+    def _initial_state(self, stiffness: float) -> list[float]:
+        log_stiffness = math.log(stiffness)
+        top = max(log_stiffness, math.log(self._prior))
+        return [log_stiffness, 0.0, 0.0, 0.0, 0.0, top, 1.0]
+
+    def _CalcFrozen(self, context, output) -> None:
+        output.SetFromVector([self._T(self._frozen)])
+
+    def _CalcEstimate(self, context, output) -> None:
+        log_estimate = context.get_discrete_state(self._state_index).CopyToVector()[0]
+        output.SetFromVector([self._T(math.exp(_value(log_estimate)))])
+
+    def _Update(self, context, discrete_state) -> None:
+        T = self._T
+        state = [_value(x) for x in context.get_discrete_state(self._state_index).CopyToVector()]
+        force = _value(self.measured_force_input.Eval(context)[0])
+        trusted = _value(self.sensor_fault_input.Eval(context)[0]) < 0.5
+        plant_state = self.estimated_state_input.Eval(context)
+        self._kinematics.set_state(
+            plant_state if T is float else np.array([T(_value(x)) for x in plant_state])
+        )
+        position = _value(self._kinematics.pose()[self._normal_axis])
+        anchor = (
+            (state[_ANCHOR_POSITION], state[_ANCHOR_FORCE], state[_ONSET])
+            if state[_ANCHORED]
+            else None
+        )
+        # A new contact after free motion starts from the highest estimate so far (at
+        # least the prior): a fall belongs to the contact that showed it. Above the
+        # latch, the estimate keeps the highest value it reached.
+        top = state[_LOG_TOP]
+        log_estimate, anchor = update_estimate(
+            state[_LOG_ESTIMATE],
+            anchor,
+            position,
+            force,
+            _value(context.get_time()),
+            contact_force=self._contact_force,
+            informative_force=self._informative_force,
+            trusted=trusted,
+            contact_start=top if state[_FREE] else -math.inf,
+            floor=top if top > self._latch else -math.inf,
+        )
+        free = trusted and math.isfinite(force) and force < self._contact_force
+        if not (free or anchor):
+            free = bool(state[_FREE])  # an untrusted reading says nothing of contact
+        new = [
+            log_estimate,
+            *(anchor if anchor else (0.0, 0.0, 0.0)),
+            float(bool(anchor)),
+            max(top, log_estimate),
+            float(free),
+        ]
+        discrete_state.get_mutable_vector(self._state_index).SetFromVector([T(x) for x in new])
+
+
 @TemplateSystem.define("StiffnessEstimator_", T_list=[float, AutoDiffXd])
 def StiffnessEstimator_(T):
-    class Impl(LeafSystem_[T]):
-        """Sampled secant stiffness between anchor samples in contact (module docstring).
-
-        State (discrete, period T): [ln k_hat, x_a, F_a, onset, anchored]. Output: k_hat, N/m.
-
-        .. pydrake_system::
-
-            name: StiffnessEstimator
-            input_ports:
-            - measured_force
-            - estimated_state
-            - sensor_fault
-            output_ports:
-            - stiffness_estimate
-        """
-
-        def _construct(
-            self,
-            plant,
-            *,
-            frame_name: str = "fingertip",
-            period: float,
-            prior_stiffness: float,
-            contact_force: float,
-            informative_force: float,
-            normal_axis: int = 0,
-            frozen_estimate: float | None = None,
-            latch_stiffness: float = math.inf,
-            coordinates=PLANAR_COORDINATES,
-            expressed_in: str = "world",
-            converter=None,
-        ) -> None:
-            """
-            Args:
-                plant: finalized MultibodyPlant_[T] of the arm.
-                frame_name: the contact frame.
-                period: T, the sample period (the sensor's), s.
-                prior_stiffness: k_prior, the estimate before any contact, N/m.
-                contact_force: F_c, the threshold of contact, N.
-                informative_force: dF_min, N.
-                normal_axis: the wall normal's index in X = (x, y, theta).
-                frozen_estimate: None, or a constant estimate (N/m) for analysis.
-                latch_stiffness: once the estimate has been above it (a wall stiffer
-                    than stated), it never falls below the highest value it reached, N/m.
-                coordinates, expressed_in: the task vector X and its frame (the planar
-                    arm's x, y, theta in world by default; the spatial arm's tool tip).
-            """
-            LeafSystem_[T].__init__(self, converter=converter)
-            self._plant = plant
-            self._arguments = dict(
-                frame_name=frame_name,
-                period=period,
-                prior_stiffness=prior_stiffness,
-                contact_force=contact_force,
-                informative_force=informative_force,
-                normal_axis=normal_axis,
-                frozen_estimate=frozen_estimate,
-                latch_stiffness=latch_stiffness,
-                coordinates=tuple(coordinates),
-                expressed_in=expressed_in,
-            )
-            if not latch_stiffness > 0:
-                raise ValueError(f"latch_stiffness must be > 0, got {latch_stiffness}")
-            self._latch = math.log(latch_stiffness)
-            self._period = _positive("period", period)
-            self._prior = _positive("prior_stiffness", prior_stiffness)
-            self._contact_force = _positive("contact_force", contact_force)
-            self._informative_force = _positive("informative_force", informative_force)
-            self._normal_axis = int(normal_axis)
-            self._frozen = (
-                None if frozen_estimate is None else _positive("frozen_estimate", frozen_estimate)
-            )
-            self._kinematics = frame_kinematics(
-                plant, frame_name, coordinates=coordinates, expressed_in=expressed_in
-            )
-            nx = plant.num_positions() + plant.num_velocities()
-            self.measured_force_input = self.DeclareVectorInputPort("measured_force", 1)
-            self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", nx)
-            self.sensor_fault_input = self.DeclareVectorInputPort("sensor_fault", 1)
-            if self._frozen is None:
-                self._state_index = self.DeclareDiscreteState(
-                    BasicVector_[T](self._initial_state(self._prior))
-                )
-                self.DeclarePeriodicDiscreteUpdateEvent(
-                    period_sec=self._period, offset_sec=0.0, update=self._Update
-                )
-                calc, ticket = self._CalcEstimate, self.xd_ticket()
-            else:
-                calc, ticket = self._CalcFrozen, self.nothing_ticket()
-            self.stiffness_estimate_output = self.DeclareVectorOutputPort(
-                "stiffness_estimate", 1, calc, prerequisites_of_calc={ticket}
-            )
-
-        def _construct_copy(self, other, converter=None) -> None:
-            Impl._construct(
-                self, other._plant.ToScalarType[T](), converter=converter, **other._arguments
-            )
-
-        @property
-        def prior_stiffness(self) -> float:
-            return self._prior
-
-        @property
-        def contact_force(self) -> float:
-            return self._contact_force
-
-        def set_estimate(self, context, stiffness: float) -> None:
-            """Sets k_hat (N/m) and drops the anchor; the next contact starts from it."""
-            state = self._initial_state(_positive("stiffness", stiffness))
-            state[_FREE] = 0.0
-            context.get_mutable_discrete_state(self._state_index).SetFromVector(state)
-
-        def _initial_state(self, stiffness: float) -> list[float]:
-            log_stiffness = math.log(stiffness)
-            top = max(log_stiffness, math.log(self._prior))
-            return [log_stiffness, 0.0, 0.0, 0.0, 0.0, top, 1.0]
-
-        def _CalcFrozen(self, context, output) -> None:
-            output.SetFromVector([T(self._frozen)])
-
-        def _CalcEstimate(self, context, output) -> None:
-            log_estimate = context.get_discrete_state(self._state_index).CopyToVector()[0]
-            output.SetFromVector([T(math.exp(_value(log_estimate)))])
-
-        def _Update(self, context, discrete_state) -> None:
-            state = [
-                _value(x) for x in context.get_discrete_state(self._state_index).CopyToVector()
-            ]
-            force = _value(self.measured_force_input.Eval(context)[0])
-            trusted = _value(self.sensor_fault_input.Eval(context)[0]) < 0.5
-            plant_state = self.estimated_state_input.Eval(context)
-            self._kinematics.set_state(
-                plant_state if T is float else np.array([T(_value(x)) for x in plant_state])
-            )
-            position = _value(self._kinematics.pose()[self._normal_axis])
-            anchor = (
-                (state[_ANCHOR_POSITION], state[_ANCHOR_FORCE], state[_ONSET])
-                if state[_ANCHORED]
-                else None
-            )
-            # A new contact after free motion starts from the highest estimate so far (at
-            # least the prior): a fall belongs to the contact that showed it. Above the
-            # latch, the estimate keeps the highest value it reached.
-            top = state[_LOG_TOP]
-            log_estimate, anchor = update_estimate(
-                state[_LOG_ESTIMATE],
-                anchor,
-                position,
-                force,
-                _value(context.get_time()),
-                contact_force=self._contact_force,
-                informative_force=self._informative_force,
-                trusted=trusted,
-                contact_start=top if state[_FREE] else -math.inf,
-                floor=top if top > self._latch else -math.inf,
-            )
-            free = trusted and math.isfinite(force) and force < self._contact_force
-            if not (free or anchor):
-                free = bool(state[_FREE])  # an untrusted reading says nothing of contact
-            new = [
-                log_estimate,
-                *(anchor if anchor else (0.0, 0.0, 0.0)),
-                float(bool(anchor)),
-                max(top, log_estimate),
-                float(free),
-            ]
-            discrete_state.get_mutable_vector(self._state_index).SetFromVector([T(x) for x in new])
+    class Impl(_StiffnessEstimator, LeafSystem_[T]):
+        __doc__ = _StiffnessEstimator.__doc__
+        _T = T
+        # TemplateSystem looks for them in the class itself.
+        _construct = _StiffnessEstimator._construct
+        _construct_copy = _StiffnessEstimator._construct_copy
 
     return Impl
 

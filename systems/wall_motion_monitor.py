@@ -39,7 +39,7 @@ from pydrake.autodiffutils import AutoDiffXd
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.contact_frame import ContactFrame
 
 __all__ = ["WallMotionMonitor", "WallMotionMonitor_", "approach_evidence"]
 
@@ -79,118 +79,125 @@ def approach_evidence(
     return max(rise / (period * stiffness_estimate) - tip_speed, 0.0)
 
 
+class _WallMotionMonitor:
+    """The approach speed of the wall in contact, sampled (module docstring).
+
+    State (discrete, period T): [F[k-1] or NaN, v_hat]. Output: v_hat, m/s (>= 0).
+
+    .. pydrake_system::
+
+        name: WallMotionMonitor
+        input_ports:
+        - measured_force
+        - estimated_state
+        - stiffness_estimate
+        - sensor_fault
+        output_ports:
+        - wall_approach_speed
+    """
+
+    def _construct(
+        self,
+        plant,
+        *,
+        contact: ContactFrame,
+        period: float,
+        noise_std: float,
+        contact_force: float,
+        converter=None,
+    ) -> None:
+        """
+        Args:
+            plant: finalized MultibodyPlant_[T] of the arm.
+            contact: the contact frame, its task vector X and the normal's index in X.
+            period: T, the sample period (the sensor's), s.
+            noise_std: sigma, the reading's noise, N (>= 0).
+            contact_force: F_c, the threshold of contact, N.
+        """
+        T = self._T
+        LeafSystem_[T].__init__(self, converter=converter)
+        for name, value, least in (
+            ("period", period, 0.0),
+            ("contact_force", contact_force, 0.0),
+        ):
+            if not (math.isfinite(value) and value > least):
+                raise ValueError(f"{name} must be > 0, got {value}")
+        if not (math.isfinite(noise_std) and noise_std >= 0.0):
+            raise ValueError(f"noise_std must be >= 0, got {noise_std}")
+        self._plant = plant
+        self._arguments = dict(
+            contact=contact,
+            period=float(period),
+            noise_std=float(noise_std),
+            contact_force=float(contact_force),
+        )
+        self._period = float(period)
+        self._noise = float(noise_std)
+        self._contact_force = float(contact_force)
+        self._normal_axis = contact.normal_axis
+        self._kinematics = contact.kinematics(plant)
+        nq, nv = plant.num_positions(), plant.num_velocities()
+        self._num_positions = nq
+        self.measured_force_input = self.DeclareVectorInputPort("measured_force", 1)
+        self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", nq + nv)
+        self.stiffness_estimate_input = self.DeclareVectorInputPort("stiffness_estimate", 1)
+        self.sensor_fault_input = self.DeclareVectorInputPort("sensor_fault", 1)
+        self._state_index = self.DeclareDiscreteState(BasicVector_[T]([math.nan, 0.0]))
+        self.DeclarePeriodicDiscreteUpdateEvent(
+            period_sec=self._period, offset_sec=0.0, update=self._Update
+        )
+        self.wall_approach_speed_output = self.DeclareVectorOutputPort(
+            "wall_approach_speed",
+            1,
+            lambda context, output: output.SetFromVector(
+                [context.get_discrete_state(self._state_index)[_SPEED]]
+            ),
+            prerequisites_of_calc={self.xd_ticket()},
+        )
+
+    def _construct_copy(self, other, converter=None) -> None:
+        _WallMotionMonitor._construct(
+            self, other._plant.ToScalarType[self._T](), converter=converter, **other._arguments
+        )
+
+    def _Update(self, context, discrete_state) -> None:
+        T = self._T
+        last = _value(context.get_discrete_state(self._state_index)[_LAST_FORCE])
+        last_speed = _value(context.get_discrete_state(self._state_index)[_SPEED])
+        force = _value(self.measured_force_input.Eval(context)[0])
+        trusted = _value(self.sensor_fault_input.Eval(context)[0]) < 0.5
+        if not (trusted and math.isfinite(force) and force >= self._contact_force):
+            new = [math.nan, 0.0]
+        else:
+            state = self.estimated_state_input.Eval(context)
+            self._kinematics.set_state(
+                state if T is float else np.array([T(_value(x)) for x in state])
+            )
+            row = [_value(j) for j in self._kinematics.jacobian()[self._normal_axis]]
+            velocity = [_value(v) for v in state[self._num_positions :]]
+            tip_speed = float(np.dot(row, velocity))
+            estimate = _value(self.stiffness_estimate_input.Eval(context)[0])
+            speed = approach_evidence(
+                last,
+                force,
+                tip_speed,
+                estimate,
+                period=self._period,
+                noise_std=self._noise,
+                last_speed=last_speed,
+            )
+            new = [force, speed]
+        discrete_state.get_mutable_vector(self._state_index).SetFromVector([T(x) for x in new])
+
+
 @TemplateSystem.define("WallMotionMonitor_", T_list=[float, AutoDiffXd])
 def WallMotionMonitor_(T):
-    class Impl(LeafSystem_[T]):
-        """The approach speed of the wall in contact, sampled (module docstring).
-
-        State (discrete, period T): [F[k-1] or NaN, v_hat]. Output: v_hat, m/s (>= 0).
-
-        .. pydrake_system::
-
-            name: WallMotionMonitor
-            input_ports:
-            - measured_force
-            - estimated_state
-            - stiffness_estimate
-            - sensor_fault
-            output_ports:
-            - wall_approach_speed
-        """
-
-        def _construct(
-            self,
-            plant,
-            *,
-            frame_name: str = "fingertip",
-            period: float,
-            noise_std: float,
-            contact_force: float,
-            normal_axis: int = 0,
-            converter=None,
-        ) -> None:
-            """
-            Args:
-                plant: finalized MultibodyPlant_[T] of the arm.
-                frame_name: the contact frame.
-                period: T, the sample period (the sensor's), s.
-                noise_std: sigma, the reading's noise, N (>= 0).
-                contact_force: F_c, the threshold of contact, N.
-                normal_axis: the wall normal's index in X = (x, y, theta).
-            """
-            LeafSystem_[T].__init__(self, converter=converter)
-            for name, value, least in (
-                ("period", period, 0.0),
-                ("contact_force", contact_force, 0.0),
-            ):
-                if not (math.isfinite(value) and value > least):
-                    raise ValueError(f"{name} must be > 0, got {value}")
-            if not (math.isfinite(noise_std) and noise_std >= 0.0):
-                raise ValueError(f"noise_std must be >= 0, got {noise_std}")
-            self._plant = plant
-            self._arguments = dict(
-                frame_name=frame_name,
-                period=float(period),
-                noise_std=float(noise_std),
-                contact_force=float(contact_force),
-                normal_axis=int(normal_axis),
-            )
-            self._period = float(period)
-            self._noise = float(noise_std)
-            self._contact_force = float(contact_force)
-            self._normal_axis = int(normal_axis)
-            self._kinematics = PlanarFrameKinematics(plant, frame_name)
-            nq, nv = plant.num_positions(), plant.num_velocities()
-            self._num_positions = nq
-            self.measured_force_input = self.DeclareVectorInputPort("measured_force", 1)
-            self.estimated_state_input = self.DeclareVectorInputPort("estimated_state", nq + nv)
-            self.stiffness_estimate_input = self.DeclareVectorInputPort("stiffness_estimate", 1)
-            self.sensor_fault_input = self.DeclareVectorInputPort("sensor_fault", 1)
-            self._state_index = self.DeclareDiscreteState(BasicVector_[T]([math.nan, 0.0]))
-            self.DeclarePeriodicDiscreteUpdateEvent(
-                period_sec=self._period, offset_sec=0.0, update=self._Update
-            )
-            self.wall_approach_speed_output = self.DeclareVectorOutputPort(
-                "wall_approach_speed",
-                1,
-                lambda context, output: output.SetFromVector(
-                    [context.get_discrete_state(self._state_index)[_SPEED]]
-                ),
-                prerequisites_of_calc={self.xd_ticket()},
-            )
-
-        def _construct_copy(self, other, converter=None) -> None:
-            Impl._construct(
-                self, other._plant.ToScalarType[T](), converter=converter, **other._arguments
-            )
-
-        def _Update(self, context, discrete_state) -> None:
-            last = _value(context.get_discrete_state(self._state_index)[_LAST_FORCE])
-            last_speed = _value(context.get_discrete_state(self._state_index)[_SPEED])
-            force = _value(self.measured_force_input.Eval(context)[0])
-            trusted = _value(self.sensor_fault_input.Eval(context)[0]) < 0.5
-            if not (trusted and math.isfinite(force) and force >= self._contact_force):
-                new = [math.nan, 0.0]
-            else:
-                state = self.estimated_state_input.Eval(context)
-                self._kinematics.set_state(
-                    state if T is float else np.array([T(_value(x)) for x in state])
-                )
-                row = [_value(j) for j in self._kinematics.jacobian()[self._normal_axis]]
-                velocity = [_value(v) for v in state[self._num_positions :]]
-                tip_speed = float(np.dot(row, velocity))
-                estimate = _value(self.stiffness_estimate_input.Eval(context)[0])
-                speed = approach_evidence(
-                    last,
-                    force,
-                    tip_speed,
-                    estimate,
-                    period=self._period,
-                    noise_std=self._noise,
-                    last_speed=last_speed,
-                )
-                new = [force, speed]
-            discrete_state.get_mutable_vector(self._state_index).SetFromVector([T(x) for x in new])
+    class Impl(_WallMotionMonitor, LeafSystem_[T]):
+        __doc__ = _WallMotionMonitor.__doc__
+        _T = T
+        # TemplateSystem looks for them in the class itself.
+        _construct = _WallMotionMonitor._construct
+        _construct_copy = _WallMotionMonitor._construct_copy
 
     return Impl
 

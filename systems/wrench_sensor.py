@@ -4,9 +4,10 @@ The wrist sensor of the controllers a user would compare with (ros2_controllers'
 admittance_controller, FZI's cartesian_controllers): Drake's weld reaction force, read as
 a real sensor reports it, with its bias, noise, low-pass and readout period, and the
 tool's weight removed as ros2's admittance_controller removes it. Two systems:
-:class:`WrenchSensor` (the sensor and the weight compensation) and
-:class:`WrenchInControlFrame` (the compensated wrench as the force law reads it: about
-the tool's contact point, in a control frame E, signed so that pushing is positive).
+:class:`WrenchSensor` (the sensor and the weight compensation, here) and
+``WrenchInControlFrame`` (systems/wrench_in_control_frame.py: the compensated wrench as
+the force law reads it, about the tool's contact point, in a control frame E, signed so
+that pushing is positive).
 
 Convention (the one of ros2's admittance_controller and of real F/T sensors): the
 reading is the wrench that the tool exerts on the sensor's measuring side, about the
@@ -37,20 +38,23 @@ from pydrake.multibody.math import SpatialForce_
 from pydrake.systems.framework import BasicVector_, LeafSystem_
 from pydrake.systems.scalar_conversion import TemplateSystem
 
+from admittance.systems.vector3 import cross, rotation_rows, unrotate
+
 __all__ = [
     "WRENCH_AXES",
-    "WrenchInControlFrame",
-    "WrenchInControlFrame_",
     "WrenchSensor",
     "WrenchSensor_",
     "carried_mass_and_com",
+    "finite_vector",
+    "frame_in_body",
+    "weld_mount",
 ]
 
 #: The names of the six components of a wrench, in the order of every 6-vector here.
 WRENCH_AXES = ("fx", "fy", "fz", "tx", "ty", "tz")
 
 
-def _vector(name: str, value: Sequence[float], size: int) -> list[float]:
+def finite_vector(name: str, value: Sequence[float], size: int) -> list[float]:
     """`value` as `size` finite floats, or ValueError naming `name`."""
     array = np.asarray(value, dtype=float).reshape(-1)
     if array.shape != (size,) or not np.all(np.isfinite(array)):
@@ -66,7 +70,7 @@ def _nonnegative(name: str, value: float, unit: str) -> float:
     return number
 
 
-def _frame_in_body(frame) -> tuple[int, list[list[float]]]:
+def frame_in_body(frame) -> tuple[int, list[list[float]]]:
     """(body index, R_BF rows) of a plant frame F fixed in its body B: what reads F's
     orientation from the plant's body poses."""
     return int(frame.body().index()), frame.GetFixedPoseInBodyFrame().rotation().matrix().tolist()
@@ -84,10 +88,10 @@ def _weld(plant, weld_joint: str):
     return joint
 
 
-def _weld_mount(plant, weld_joint: str) -> dict:
+def weld_mount(plant, weld_joint: str) -> dict:
     """What the sensor needs of the plant: the weld's index, S on the tool, gravity."""
     joint = _weld(plant, weld_joint)
-    body, R_BS = _frame_in_body(joint.frame_on_child())
+    body, R_BS = frame_in_body(joint.frame_on_child())
     return dict(
         # The reaction-force port holds one entry per joint in the order of their indices
         # (Drake's joint ordinals): a plant whose joints were removed (a description's
@@ -133,405 +137,268 @@ def carried_mass_and_com(plant, weld_joint: str) -> tuple[float, list[float]]:
     return mass, X_WS.inverse().multiply(com_W).tolist()
 
 
-# Small 3-vector arithmetic on lists: the same code for floats and AutoDiffXd, and about
-# ten times faster than numpy's on 3-vectors (np.cross alone costs tens of us).
-def _cross(a, b) -> list:
-    """a x b."""
-    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+class _WrenchSensor:
+    """A 6-axis F/T sensor at a weld joint, and its tool-weight compensation.
 
+    Law, with w the true wrench of the tool on the sensor in S (see the module's
+    docstring), b the bias, sigma the noise std (force axes sigma_f, torque axes
+    sigma_t) and n the ``noise`` input (standard normal, one value per axis)::
 
-def _rotate(R, v) -> list:
-    """R v, R as three rows."""
-    return [r[0] * v[0] + r[1] * v[1] + r[2] * v[2] for r in R]
+        w       = -[F_CJc_Jc.translational(); F_CJc_Jc.rotational()]
+        dx/dt   = (w - x) / tau,  tau = 1 / (2 pi f_c)         (f_c > 0, period 0)
+        x[k+1]  = w[k] + (x[k] - w[k]) exp(-h / tau)           (period h > 0)
+        wrench  = x + b + sigma n      (x = w without filter and period)
+        compensated_wrench = wrench - [m g_S; c x m g_S],  g_S = R_WS^T g_W
 
+    The low-pass is the sensor's own (its electronics), so bias and noise enter after
+    it and the compensation (a controller's step, as in ros2's admittance_controller)
+    acts on the reading. The readout period h holds x between samples (one discrete
+    group of 6; Drake caches the raw reading until the next sample or noise draw, the
+    compensated one follows the sensor's orientation); with f_c = 0 it is a
+    zero-order hold, ``x[k+1] = w[k]``. With neither filter nor period
+    the reading feeds through from ``reaction_forces``: on a continuous plant those
+    depend on the actuation, so a loop closed through them is algebraic (Drake says
+    so at Build); give it a filter or a period, or use a discrete plant.
 
-def _unrotate(R, v) -> list:
-    """R^T v, R as three rows."""
-    return [R[0][i] * v[0] + R[1][i] * v[1] + R[2][i] * v[2] for i in range(3)]
+    The compensation removes the weight of a tool at rest. It does not remove the
+    tool's inertial forces: the tool, accelerating at a, reads m (g - a), so -m a
+    stays in the compensated reading (and its moment -c x m a, and the rotational
+    inertia's). A slide at 2 cm/s reached in 0.2 s accelerates at 0.1 m/s^2: 0.05 N
+    for a 0.5 kg tool, 0.5 % of a 10 N press; at constant speed it is zero
+    (docs/wrist-sensor.md). ``tool_mass`` and ``tool_com`` are those of everything
+    the weld carries (None: taken from the plant, a perfectly calibrated tool).
 
+    ``noise`` is standard normal (a RandomSource of kGaussian, sampled at the
+    sensor's period), scaled here, so a zero input is a noise-free sensor. The
+    filter's state starts at zero (a sensor switched on unloaded); call
+    :meth:`InitializeReading` after setting the plant's state to start settled.
 
-def _rows(pose) -> list:
-    """R_WB of a body pose X_WB as three rows."""
-    return pose.rotation().matrix().tolist()
+    Scalar types: float and AutoDiffXd (the abstract inputs are the plant's
+    ``List[SpatialForce_[T]]`` and ``List[RigidTransform_[T]]``), not symbolic.
+
+    .. pydrake_system::
+
+        name: WrenchSensor
+        input_ports:
+        - reaction_forces
+        - body_poses
+        - noise
+        output_ports:
+        - wrench
+        - compensated_wrench
+    """
+
+    def _construct(
+        self,
+        plant=None,
+        weld_joint: str = "",
+        *,
+        bias: Sequence[float] = (0.0,) * 6,
+        force_noise_std: float = 0.0,
+        torque_noise_std: float = 0.0,
+        filter_cutoff_hz: float = 0.0,
+        period: float = 0.0,
+        tool_mass: float | None = None,
+        tool_com: Sequence[float] | None = None,
+        mount: dict | None = None,
+        converter=None,
+    ) -> None:
+        """Declares the ports and the filter's state.
+
+        Args:
+            plant: the MultibodyPlant holding the weld (only read here).
+            weld_joint: name of the weld joint between the flange (parent) and the
+                tool (child); its frame on the tool is the sensor frame S.
+            bias: constant offset of the reading, [N x3, N m x3].
+            force_noise_std: std of the white noise on fx, fy, fz, N (>= 0).
+            torque_noise_std: std of the white noise on tx, ty, tz, N m (>= 0).
+            filter_cutoff_hz: cut-off of the first-order low-pass, Hz (0 = none).
+            period: readout period, s (0 = continuous).
+            tool_mass: the mass the weld carries, kg (>= 0), for the compensation
+                (None: the plant's, see :func:`carried_mass_and_com`).
+            tool_com: its centre of mass in S, m (None: the plant's).
+            mount: the plant's data this system uses (scalar conversion only).
+            converter: scalar converter, supplied by TemplateSystem.
+
+        Raises:
+            ValueError: an argument is out of range (the message names it).
+        """
+        LeafSystem_[self._T].__init__(self, converter=converter)
+        if mount is None:
+            if plant is None:
+                raise ValueError("WrenchSensor needs the plant and its weld_joint")
+            mount = weld_mount(plant, weld_joint)
+        if tool_mass is None or tool_com is None:  # a perfectly calibrated tool
+            if plant is None:
+                raise ValueError("WrenchSensor needs the plant for the tool's inertia")
+            carried = carried_mass_and_com(plant, weld_joint)
+            tool_mass = carried[0] if tool_mass is None else tool_mass
+            tool_com = carried[1] if tool_com is None else tool_com
+        cutoff = _nonnegative("filter_cutoff_hz", filter_cutoff_hz, "Hz (0 = none)")
+        h = _nonnegative("period", period, "s (0 = continuous)")
+        self._arguments = dict(
+            bias=finite_vector("bias", bias, 6),
+            force_noise_std=_nonnegative("force_noise_std", force_noise_std, "N"),
+            torque_noise_std=_nonnegative("torque_noise_std", torque_noise_std, "N m"),
+            filter_cutoff_hz=cutoff,
+            period=h,
+            tool_mass=_nonnegative("tool_mass", tool_mass, "kg"),
+            tool_com=finite_vector("tool_com", tool_com, 3),
+            mount=mount,
+        )
+        self._set_constants(self._arguments)
+        self._declare_ports()
+
+    def _set_constants(self, arguments: dict) -> None:
+        """The mount's indices, the tool's weight, the bias, noise, filter and period."""
+        mount, cutoff, h = arguments["mount"], arguments["filter_cutoff_hz"], arguments["period"]
+        self._joint = mount["joint_index"]
+        self._body = mount["body_index"]
+        self._R_BS = mount["R_BS"]
+        # The tool's weight m g_W (N) and its centre of mass c (m, in S).
+        self._weight_W = [arguments["tool_mass"] * g for g in mount["gravity"]]
+        self._com = arguments["tool_com"]
+        self._bias = arguments["bias"]
+        self._sigma = [arguments["force_noise_std"]] * 3 + [arguments["torque_noise_std"]] * 3
+        self._tau = 1.0 / (2.0 * math.pi * cutoff) if cutoff > 0 else 0.0
+        self._period = h
+        # Fraction of the state left after one period (0: a plain zero-order hold).
+        self._decay = math.exp(-h / self._tau) if (h > 0 and cutoff > 0) else 0.0
+
+    def _declare_ports(self) -> None:
+        """The inputs, the reading's state (a hold with a period, a filter with a
+        cut-off, none without either) and the two outputs."""
+        T = self._T
+        self.reaction_forces_input = self.DeclareAbstractInputPort(
+            "reaction_forces", Value[List[SpatialForce_[T]]]()
+        )
+        self.body_poses_input = self.DeclareAbstractInputPort(
+            "body_poses", Value[List[RigidTransform_[T]]]()
+        )
+        self.noise_input = self.DeclareVectorInputPort("noise", 6)
+        if self._period > 0:
+            # One group, x: a context's SetDiscreteState(x) sets the sensor's reading.
+            self._state = self.DeclareDiscreteState(6)
+            self.DeclarePeriodicDiscreteUpdateEvent(
+                period_sec=self._period, offset_sec=0.0, update=self._sample
+            )
+            reading = {self.xd_ticket()}
+        elif self._arguments["filter_cutoff_hz"] > 0:
+            self.DeclareContinuousState(BasicVector_[T]([0.0] * 6))
+            reading = {self.xc_ticket()}
+        else:
+            reading = {self.reaction_forces_input.ticket()}
+        reading.add(self.noise_input.ticket())
+        self.wrench_output = self.DeclareVectorOutputPort(
+            "wrench", 6, self._calc_wrench, prerequisites_of_calc=reading
+        )
+        self.compensated_wrench_output = self.DeclareVectorOutputPort(
+            "compensated_wrench",
+            6,
+            self._calc_compensated,
+            prerequisites_of_calc=reading | {self.body_poses_input.ticket()},
+        )
+
+    def _construct_copy(self, other, converter=None) -> None:
+        _WrenchSensor._construct(self, **other._arguments, converter=converter)
+
+    # ----------------------------------------------------------------- calcs
+    def true_wrench(self, context) -> list:
+        """w: the wrench of the tool on the sensor, about S, in S (no bias, noise,
+        filter), from the plant's reaction force at the weld."""
+        F = self.reaction_forces_input.Eval(context)[self._joint]
+        return [-x for x in F.translational().tolist() + F.rotational().tolist()]
+
+    def weight_wrench(self, context) -> list:
+        """[m g_S; c x m g_S]: the tool's weight and its moment about S, in S."""
+        pose = self.body_poses_input.Eval(context)[self._body]
+        weight_S = unrotate(self._R_BS, unrotate(rotation_rows(pose), self._weight_W))
+        return weight_S + cross(self._com, weight_S)
+
+    def _filtered(self, context) -> list:
+        """x: the filter's (or the hold's) state, or w when there is neither."""
+        if self._period > 0:
+            return context.get_discrete_state(self._state).value().tolist()
+        if self._tau > 0:
+            return context.get_continuous_state_vector().CopyToVector().tolist()
+        return self.true_wrench(context)
+
+    def _reading(self, context) -> list:
+        """x + b + sigma n."""
+        noise = self.noise_input.Eval(context).tolist()
+        return [
+            x + b + s * n
+            for x, b, s, n in zip(
+                self._filtered(context), self._bias, self._sigma, noise, strict=True
+            )
+        ]
+
+    def _calc_wrench(self, context, output) -> None:
+        output.SetFromVector(self._reading(context))
+
+    def _calc_compensated(self, context, output) -> None:
+        weight = self.weight_wrench(context)
+        output.SetFromVector([x - w for x, w in zip(self._reading(context), weight, strict=True)])
+
+    def DoCalcTimeDerivatives(self, context, derivatives) -> None:
+        """dx/dt = (w - x) / tau (only the continuous filter has a state)."""
+        if self._period > 0 or self._tau == 0:
+            return
+        state = context.get_continuous_state_vector().CopyToVector().tolist()
+        rate = 1.0 / self._tau
+        derivatives.get_mutable_vector().SetFromVector(
+            [(w - x) * rate for w, x in zip(self.true_wrench(context), state, strict=True)]
+        )
+
+    def _sample(self, context, discrete_state) -> None:
+        """x[k+1] = w[k] + (x[k] - w[k]) exp(-h / tau)."""
+        state = context.get_discrete_state(self._state).value().tolist()
+        discrete_state.get_mutable_vector(self._state).SetFromVector(
+            [
+                w + (x - w) * self._decay
+                for w, x in zip(self.true_wrench(context), state, strict=True)
+            ]
+        )
+
+    def InitializeReading(self, context) -> None:
+        """Sets the filter's (or hold's) state to the true wrench now: a sensor that
+        has settled on the initial load (the plant's state must be set first). Any
+        other start: ``SetDiscreteState`` or ``SetContinuousState`` of x."""
+        if self._period > 0:
+            context.SetDiscreteState(self._state, self.true_wrench(context))
+        elif self._tau > 0:
+            context.SetContinuousState(self.true_wrench(context))
+
+    # ---------------------------------------------------------- accessors
+    @property
+    def period(self) -> float:
+        """Readout period, s (0 = continuous)."""
+        return self._period
+
+    @property
+    def filter_time_constant(self) -> float:
+        """tau = 1 / (2 pi f_c) of the low-pass, s (0 = no filter)."""
+        return self._tau
+
+    @property
+    def noise_std(self) -> np.ndarray:
+        """The noise std on each axis, [N x3, N m x3]."""
+        return np.array(self._sigma)
 
 
 @TemplateSystem.define("WrenchSensor_", T_list=[float, AutoDiffXd])
 def WrenchSensor_(T):
     """Template of the wrist force/torque sensor; see ``WrenchSensor``."""
 
-    class Impl(LeafSystem_[T]):
-        """A 6-axis F/T sensor at a weld joint, and its tool-weight compensation.
-
-        Law, with w the true wrench of the tool on the sensor in S (see the module's
-        docstring), b the bias, sigma the noise std (force axes sigma_f, torque axes
-        sigma_t) and n the ``noise`` input (standard normal, one value per axis)::
-
-            w       = -[F_CJc_Jc.translational(); F_CJc_Jc.rotational()]
-            dx/dt   = (w - x) / tau,  tau = 1 / (2 pi f_c)         (f_c > 0, period 0)
-            x[k+1]  = w[k] + (x[k] - w[k]) exp(-h / tau)           (period h > 0)
-            wrench  = x + b + sigma n      (x = w without filter and period)
-            compensated_wrench = wrench - [m g_S; c x m g_S],  g_S = R_WS^T g_W
-
-        The low-pass is the sensor's own (its electronics), so bias and noise enter after
-        it and the compensation (a controller's step, as in ros2's admittance_controller)
-        acts on the reading. The readout period h holds x between samples (one discrete
-        group of 6; Drake caches the raw reading until the next sample or noise draw, the
-        compensated one follows the sensor's orientation); with f_c = 0 it is a
-        zero-order hold, ``x[k+1] = w[k]``. With neither filter nor period
-        the reading feeds through from ``reaction_forces``: on a continuous plant those
-        depend on the actuation, so a loop closed through them is algebraic (Drake says
-        so at Build); give it a filter or a period, or use a discrete plant.
-
-        The compensation removes the weight of a tool at rest. It does not remove the
-        tool's inertial forces: the tool, accelerating at a, reads m (g - a), so -m a
-        stays in the compensated reading (and its moment -c x m a, and the rotational
-        inertia's). A slide at 2 cm/s reached in 0.2 s accelerates at 0.1 m/s^2: 0.05 N
-        for a 0.5 kg tool, 0.5 % of a 10 N press; at constant speed it is zero
-        (docs/wrist-sensor.md). ``tool_mass`` and ``tool_com`` are those of everything
-        the weld carries (None: taken from the plant, a perfectly calibrated tool).
-
-        ``noise`` is standard normal (a RandomSource of kGaussian, sampled at the
-        sensor's period), scaled here, so a zero input is a noise-free sensor. The
-        filter's state starts at zero (a sensor switched on unloaded); call
-        :meth:`InitializeReading` after setting the plant's state to start settled.
-
-        Scalar types: float and AutoDiffXd (the abstract inputs are the plant's
-        ``List[SpatialForce_[T]]`` and ``List[RigidTransform_[T]]``), not symbolic.
-
-        .. pydrake_system::
-
-            name: WrenchSensor
-            input_ports:
-            - reaction_forces
-            - body_poses
-            - noise
-            output_ports:
-            - wrench
-            - compensated_wrench
-        """
-
-        def _construct(
-            self,
-            plant=None,
-            weld_joint: str = "",
-            *,
-            bias: Sequence[float] = (0.0,) * 6,
-            force_noise_std: float = 0.0,
-            torque_noise_std: float = 0.0,
-            filter_cutoff_hz: float = 0.0,
-            period: float = 0.0,
-            tool_mass: float | None = None,
-            tool_com: Sequence[float] | None = None,
-            mount: dict | None = None,
-            converter=None,
-        ) -> None:
-            """Declares the ports and the filter's state.
-
-            Args:
-                plant: the MultibodyPlant holding the weld (only read here).
-                weld_joint: name of the weld joint between the flange (parent) and the
-                    tool (child); its frame on the tool is the sensor frame S.
-                bias: constant offset of the reading, [N x3, N m x3].
-                force_noise_std: std of the white noise on fx, fy, fz, N (>= 0).
-                torque_noise_std: std of the white noise on tx, ty, tz, N m (>= 0).
-                filter_cutoff_hz: cut-off of the first-order low-pass, Hz (0 = none).
-                period: readout period, s (0 = continuous).
-                tool_mass: the mass the weld carries, kg (>= 0), for the compensation
-                    (None: the plant's, see :func:`carried_mass_and_com`).
-                tool_com: its centre of mass in S, m (None: the plant's).
-                mount: the plant's data this system uses (scalar conversion only).
-                converter: scalar converter, supplied by TemplateSystem.
-
-            Raises:
-                ValueError: an argument is out of range (the message names it).
-            """
-            LeafSystem_[T].__init__(self, converter=converter)
-            if mount is None:
-                if plant is None:
-                    raise ValueError("WrenchSensor needs the plant and its weld_joint")
-                mount = _weld_mount(plant, weld_joint)
-            if tool_mass is None or tool_com is None:  # a perfectly calibrated tool
-                if plant is None:
-                    raise ValueError("WrenchSensor needs the plant for the tool's inertia")
-                carried = carried_mass_and_com(plant, weld_joint)
-                tool_mass = carried[0] if tool_mass is None else tool_mass
-                tool_com = carried[1] if tool_com is None else tool_com
-            cutoff = _nonnegative("filter_cutoff_hz", filter_cutoff_hz, "Hz (0 = none)")
-            h = _nonnegative("period", period, "s (0 = continuous)")
-            self._arguments = dict(
-                bias=_vector("bias", bias, 6),
-                force_noise_std=_nonnegative("force_noise_std", force_noise_std, "N"),
-                torque_noise_std=_nonnegative("torque_noise_std", torque_noise_std, "N m"),
-                filter_cutoff_hz=cutoff,
-                period=h,
-                tool_mass=_nonnegative("tool_mass", tool_mass, "kg"),
-                tool_com=_vector("tool_com", tool_com, 3),
-                mount=mount,
-            )
-            self._joint = mount["joint_index"]
-            self._body = mount["body_index"]
-            self._R_BS = mount["R_BS"]
-            # The tool's weight m g_W (N) and its centre of mass c (m, in S).
-            self._weight_W = [self._arguments["tool_mass"] * g for g in mount["gravity"]]
-            self._com = self._arguments["tool_com"]
-            self._bias = self._arguments["bias"]
-            self._sigma = [self._arguments["force_noise_std"]] * 3 + [
-                self._arguments["torque_noise_std"]
-            ] * 3
-            self._tau = 1.0 / (2.0 * math.pi * cutoff) if cutoff > 0 else 0.0
-            self._period = h
-            # Fraction of the state left after one period (0: a plain zero-order hold).
-            self._decay = math.exp(-h / self._tau) if (h > 0 and cutoff > 0) else 0.0
-
-            self.reaction_forces_input = self.DeclareAbstractInputPort(
-                "reaction_forces", Value[List[SpatialForce_[T]]]()
-            )
-            self.body_poses_input = self.DeclareAbstractInputPort(
-                "body_poses", Value[List[RigidTransform_[T]]]()
-            )
-            self.noise_input = self.DeclareVectorInputPort("noise", 6)
-            if h > 0:
-                # One group, x: a context's SetDiscreteState(x) sets the sensor's reading.
-                self._state = self.DeclareDiscreteState(6)
-                self.DeclarePeriodicDiscreteUpdateEvent(
-                    period_sec=h, offset_sec=0.0, update=self._sample
-                )
-                reading = {self.xd_ticket()}
-            elif cutoff > 0:
-                self.DeclareContinuousState(BasicVector_[T]([0.0] * 6))
-                reading = {self.xc_ticket()}
-            else:
-                reading = {self.reaction_forces_input.ticket()}
-            reading.add(self.noise_input.ticket())
-            self.wrench_output = self.DeclareVectorOutputPort(
-                "wrench", 6, self._calc_wrench, prerequisites_of_calc=reading
-            )
-            self.compensated_wrench_output = self.DeclareVectorOutputPort(
-                "compensated_wrench",
-                6,
-                self._calc_compensated,
-                prerequisites_of_calc=reading | {self.body_poses_input.ticket()},
-            )
-
-        def _construct_copy(self, other, converter=None) -> None:
-            Impl._construct(self, **other._arguments, converter=converter)
-
-        # ----------------------------------------------------------------- calcs
-        def true_wrench(self, context) -> list:
-            """w: the wrench of the tool on the sensor, about S, in S (no bias, noise,
-            filter), from the plant's reaction force at the weld."""
-            F = self.reaction_forces_input.Eval(context)[self._joint]
-            return [-x for x in F.translational().tolist() + F.rotational().tolist()]
-
-        def weight_wrench(self, context) -> list:
-            """[m g_S; c x m g_S]: the tool's weight and its moment about S, in S."""
-            pose = self.body_poses_input.Eval(context)[self._body]
-            weight_S = _unrotate(self._R_BS, _unrotate(_rows(pose), self._weight_W))
-            return weight_S + _cross(self._com, weight_S)
-
-        def _filtered(self, context) -> list:
-            """x: the filter's (or the hold's) state, or w when there is neither."""
-            if self._period > 0:
-                return context.get_discrete_state(self._state).value().tolist()
-            if self._tau > 0:
-                return context.get_continuous_state_vector().CopyToVector().tolist()
-            return self.true_wrench(context)
-
-        def _reading(self, context) -> list:
-            """x + b + sigma n."""
-            noise = self.noise_input.Eval(context).tolist()
-            return [
-                x + b + s * n
-                for x, b, s, n in zip(
-                    self._filtered(context), self._bias, self._sigma, noise, strict=True
-                )
-            ]
-
-        def _calc_wrench(self, context, output) -> None:
-            output.SetFromVector(self._reading(context))
-
-        def _calc_compensated(self, context, output) -> None:
-            weight = self.weight_wrench(context)
-            output.SetFromVector(
-                [x - w for x, w in zip(self._reading(context), weight, strict=True)]
-            )
-
-        def DoCalcTimeDerivatives(self, context, derivatives) -> None:
-            """dx/dt = (w - x) / tau (only the continuous filter has a state)."""
-            if self._period > 0 or self._tau == 0:
-                return
-            state = context.get_continuous_state_vector().CopyToVector().tolist()
-            rate = 1.0 / self._tau
-            derivatives.get_mutable_vector().SetFromVector(
-                [(w - x) * rate for w, x in zip(self.true_wrench(context), state, strict=True)]
-            )
-
-        def _sample(self, context, discrete_state) -> None:
-            """x[k+1] = w[k] + (x[k] - w[k]) exp(-h / tau)."""
-            state = context.get_discrete_state(self._state).value().tolist()
-            discrete_state.get_mutable_vector(self._state).SetFromVector(
-                [
-                    w + (x - w) * self._decay
-                    for w, x in zip(self.true_wrench(context), state, strict=True)
-                ]
-            )
-
-        def InitializeReading(self, context) -> None:
-            """Sets the filter's (or hold's) state to the true wrench now: a sensor that
-            has settled on the initial load (the plant's state must be set first). Any
-            other start: ``SetDiscreteState`` or ``SetContinuousState`` of x."""
-            if self._period > 0:
-                context.SetDiscreteState(self._state, self.true_wrench(context))
-            elif self._tau > 0:
-                context.SetContinuousState(self.true_wrench(context))
-
-        # ---------------------------------------------------------- accessors
-        @property
-        def period(self) -> float:
-            """Readout period, s (0 = continuous)."""
-            return self._period
-
-        @property
-        def filter_time_constant(self) -> float:
-            """tau = 1 / (2 pi f_c) of the low-pass, s (0 = no filter)."""
-            return self._tau
-
-        @property
-        def noise_std(self) -> np.ndarray:
-            """The noise std on each axis, [N x3, N m x3]."""
-            return np.array(self._sigma)
+    class Impl(_WrenchSensor, LeafSystem_[T]):
+        __doc__ = _WrenchSensor.__doc__
+        _T = T
+        # TemplateSystem looks for them in the class itself.
+        _construct = _WrenchSensor._construct
+        _construct_copy = _WrenchSensor._construct_copy
 
     return Impl
 
 
 #: The double-valued wrist force/torque sensor (see ``WrenchSensor_``).
 WrenchSensor = WrenchSensor_[None]
-
-
-@TemplateSystem.define("WrenchInControlFrame_", T_list=[float, AutoDiffXd])
-def WrenchInControlFrame_(T):
-    """Template of the compensated wrench as the force law reads it; see
-    ``WrenchInControlFrame``."""
-
-    class Impl(LeafSystem_[T]):
-        """The compensated wrench about the tool's contact point P, in a control frame E,
-        signed as the force law reads it, on the selected axes.
-
-        With w = [f; tau_S] the compensated wrench of :class:`WrenchSensor` (in S, about
-        S's origin), r_SP the contact point's offset in S and R_ES = R_WE^T R_WS::
-
-            tau_P = tau_S - r_SP x f                   (the moment shifted to P)
-            force = -[R_ES f; R_ES tau_P][axes]
-
-        Quasi-statically the compensated wrench is what the surface applies to the tool
-        (the weld holds the tool against the surface and its weight), so the minus sign
-        gives the wrench the tool applies to the surface: the force is positive when the
-        tool pushes along the axis, as the paper's law has F and Xr positive into the
-        wall, and the moments are those the tool applies about P. With E's z axis along
-        the surface's inward normal, ``axes = [2]`` reads the normal force.
-
-        .. pydrake_system::
-
-            name: WrenchInControlFrame
-            input_ports:
-            - wrench
-            - body_poses
-            output_ports:
-            - force
-        """
-
-        def _construct(
-            self,
-            plant=None,
-            weld_joint: str = "",
-            control_frame: str = "world",
-            *,
-            contact_offset: Sequence[float] = (0.0, 0.0, 0.0),
-            axes: Sequence[int] = (2,),
-            frames: dict | None = None,
-            converter=None,
-        ) -> None:
-            """Declares the ports.
-
-            Args:
-                plant: the MultibodyPlant (only read here).
-                weld_joint: the sensor's weld joint (its frame on the tool is S).
-                control_frame: name of the plant frame E ("world" for the world frame).
-                contact_offset: r_SP, the tool's contact point in S, m.
-                axes: indices into [fx, fy, fz, tx, ty, tz] of the outputs, distinct.
-                frames: the plant's data this system uses (scalar conversion only).
-                converter: scalar converter, supplied by TemplateSystem.
-            """
-            LeafSystem_[T].__init__(self, converter=converter)
-            if frames is None:
-                if plant is None:
-                    raise ValueError("WrenchInControlFrame needs the plant")
-                mount = _weld_mount(plant, weld_joint)
-                if control_frame != "world" and not plant.HasFrameNamed(control_frame):
-                    raise ValueError(f"control_frame: the plant has no frame {control_frame!r}")
-                frame_E = (
-                    plant.world_frame()
-                    if control_frame == "world"
-                    else plant.GetFrameByName(control_frame)
-                )
-                frames = dict(S=(mount["body_index"], mount["R_BS"]), E=_frame_in_body(frame_E))
-            selected = [int(a) for a in axes]
-            if (
-                not selected
-                or len(set(selected)) != len(selected)
-                or not all(0 <= a < 6 for a in selected)
-            ):
-                raise ValueError(f"axes must be distinct indices in [0, 5]; got {list(axes)}")
-            self._arguments = dict(
-                contact_offset=_vector("contact_offset", contact_offset, 3),
-                axes=selected,
-                frames=frames,
-            )
-            self._S, self._E = frames["S"], frames["E"]
-            self._offset = self._arguments["contact_offset"]
-            self._axes = selected
-            self.wrench_input = self.DeclareVectorInputPort("wrench", 6)
-            self.body_poses_input = self.DeclareAbstractInputPort(
-                "body_poses", Value[List[RigidTransform_[T]]]()
-            )
-            self.force_output = self.DeclareVectorOutputPort(
-                "force",
-                len(selected),
-                self._calc_force,
-                prerequisites_of_calc={
-                    self.wrench_input.ticket(),
-                    self.body_poses_input.ticket(),
-                },
-            )
-
-        def _construct_copy(self, other, converter=None) -> None:
-            Impl._construct(self, **other._arguments, converter=converter)
-
-        def wrench_on_surface(self, context) -> list:
-            """All six components, -[R_ES f; R_ES tau_P], before the selection."""
-            wrench = self.wrench_input.Eval(context).tolist()
-            poses = self.body_poses_input.Eval(context)
-            force = wrench[:3]
-            moment_P = [t - s for t, s in zip(wrench[3:], _cross(self._offset, force), strict=True)]
-            (body_S, R_BS), (body_E, R_BE) = self._S, self._E
-            R_WBs, R_WBe = _rows(poses[body_S]), _rows(poses[body_E])
-            pushed = []
-            for vector in (force, moment_P):  # v_E = R_BE^T R_WBe^T R_WBs R_BS v_S
-                in_W = _rotate(R_WBs, _rotate(R_BS, vector))
-                pushed += [-x for x in _unrotate(R_BE, _unrotate(R_WBe, in_W))]
-            return pushed
-
-        def _calc_force(self, context, output) -> None:
-            wrench = self.wrench_on_surface(context)
-            output.SetFromVector([wrench[axis] for axis in self._axes])
-
-        @property
-        def axes(self) -> list[int]:
-            """The selected indices into [fx, fy, fz, tx, ty, tz]."""
-            return list(self._axes)
-
-    return Impl
-
-
-#: The double-valued control-frame reading (see ``WrenchInControlFrame_``).
-WrenchInControlFrame = WrenchInControlFrame_[None]

@@ -13,7 +13,9 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.analysis import Simulator
 
-from admittance.systems.cartesian_pid import CartesianPid, CartesianPidLaw
+from admittance.systems.cartesian_pid import CartesianPid
+from admittance.systems.cartesian_pid_law import CartesianPidLaw
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES
 from admittance.urdf import PLANAR_ARM_URDF
 
 LENGTHS = (0.20, 0.20, 0.10)
@@ -61,7 +63,9 @@ def _sampled_update(pid, context):
 
 
 def test_torque_is_jacobian_transpose_of_pid_wrench(arm_plant):
-    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI)
+    pid = CartesianPid(
+        arm_plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES, kp=KP, kd=KD, ki=KI
+    )
     rng = np.random.default_rng(1)
     for _ in range(20):
         q = np.array([-0.45, 1.66, 0.36]) + rng.uniform(-0.3, 0.3, 3)
@@ -83,7 +87,9 @@ def test_torque_is_jacobian_transpose_of_pid_wrench(arm_plant):
 
 
 def test_torque_is_clipped_to_the_urdf_effort_limits(arm_plant):
-    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI)
+    pid = CartesianPid(
+        arm_plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES, kp=KP, kd=KD, ki=KI
+    )
     q = np.array([-0.45, 1.66, 0.36])
     X, J = eq18(q)
     # 1 m of error along x asks for 2500 N: far beyond every joint's limit.
@@ -102,7 +108,9 @@ def test_back_calculation_while_saturated(arm_plant):
     dz/dt = ec + J^-T (clip(tau) - tau) / (Ki Tt) with Tt = sqrt(Kd / Ki) (>= 10 ms): the
     correction is exactly the Cartesian wrench the clipping removed, scaled by 1 / (Ki Tt).
     """
-    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI)
+    pid = CartesianPid(
+        arm_plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES, kp=KP, kd=KD, ki=KI
+    )
     q = np.array([-0.45, 1.66, 0.36])
     X, J = eq18(q)
     small = _pid_context(pid, q, np.zeros(3), X + [1e-4, 0, 0], np.zeros(3), np.zeros(3))
@@ -122,7 +130,9 @@ def test_back_calculation_while_saturated(arm_plant):
 
 
 def test_angle_error_is_wrapped(arm_plant):
-    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI)
+    pid = CartesianPid(
+        arm_plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES, kp=KP, kd=KD, ki=KI
+    )
     q = np.array([-0.45, 1.66, 0.36])
     X, _ = eq18(q)
     commanded = X + [0.0, 0.0, 2 * math.pi + 0.001]  # the same angle plus 1 mrad
@@ -133,7 +143,9 @@ def test_angle_error_is_wrapped(arm_plant):
 
 
 def test_holding_integral_cancels_gravity(arm_plant):
-    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI)
+    pid = CartesianPid(
+        arm_plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES, kp=KP, kd=KD, ki=KI
+    )
     q = np.array([-0.45, 1.66, 0.36])
     X, _ = eq18(q)
     plant_context = arm_plant.CreateDefaultContext()
@@ -145,7 +157,15 @@ def test_holding_integral_cancels_gravity(arm_plant):
 
 
 def test_sampled_pid_holds_its_torque(arm_plant):
-    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI, period=0.001)
+    pid = CartesianPid(
+        arm_plant,
+        frame_name="fingertip",
+        coordinates=PLANAR_COORDINATES,
+        kp=KP,
+        kd=KD,
+        ki=KI,
+        period=0.001,
+    )
     q = np.array([-0.45, 1.66, 0.36])
     X, J = eq18(q)
     context = _pid_context(pid, q, np.zeros(3), X + [1e-3, 0, 0], np.zeros(3), np.zeros(3))
@@ -157,7 +177,9 @@ def test_sampled_pid_holds_its_torque(arm_plant):
 
 
 def test_autodiff_conversion_gives_the_jacobian_stiffness(arm_plant):
-    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI).ToAutoDiffXd()
+    pid = CartesianPid(
+        arm_plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES, kp=KP, kd=KD, ki=KI
+    ).ToAutoDiffXd()
     q = np.array([-0.45, 1.66, 0.36])
     X, J = eq18(q)
     context = pid.CreateDefaultContext()
@@ -184,14 +206,22 @@ def test_autodiff_conversion_gives_the_jacobian_stiffness(arm_plant):
     ],
 )
 def test_bad_arguments_name_the_argument(arm_plant, kwargs, message):
-    arguments = dict(kp=KP, kd=KD, ki=KI)
+    arguments = dict(frame_name="fingertip", coordinates=PLANAR_COORDINATES, kp=KP, kd=KD, ki=KI)
     arguments.update(kwargs)
     with pytest.raises(ValueError, match=message):
         CartesianPid(arm_plant, **arguments)
 
 
 def test_gains_and_period_are_reported(arm_plant):
-    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI, period=0.002)
+    pid = CartesianPid(
+        arm_plant,
+        frame_name="fingertip",
+        coordinates=PLANAR_COORDINATES,
+        kp=KP,
+        kd=KD,
+        ki=KI,
+        period=0.002,
+    )
     gains = pid.gains
     for name, value in (("kp", KP), ("kd", KD), ("ki", KI)):
         np.testing.assert_array_equal(gains[name], value)
@@ -202,11 +232,20 @@ def test_arguments_are_keyword_only(arm_plant):
     """Kp, Kd and Ki are all 3-vectors: a positional call could swap them unnoticed."""
     with pytest.raises(TypeError):
         CartesianPid(arm_plant, "fingertip", KP, KD, KI)
+    with pytest.raises(TypeError):  # the frame and the task are the caller's: no default
+        CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI)
 
 
 def test_small_positive_and_zero_gains_are_accepted(arm_plant):
     """kp > 0 (not >= 1), kd and ki >= 0: a soft, undamped, integral-free PID is valid."""
-    pid = CartesianPid(arm_plant, kp=[0.5, 0.5, 0.5], kd=0.0, ki=0.0)
+    pid = CartesianPid(
+        arm_plant,
+        frame_name="fingertip",
+        coordinates=PLANAR_COORDINATES,
+        kp=[0.5, 0.5, 0.5],
+        kd=0.0,
+        ki=0.0,
+    )
     q = np.array([-0.45, 1.66, 0.36])
     X, J = eq18(q)
     context = _pid_context(pid, q, np.zeros(3), X + [0.1, 0, 0], np.zeros(3), np.zeros(3))
@@ -214,7 +253,14 @@ def test_small_positive_and_zero_gains_are_accepted(arm_plant):
 
 
 def test_holding_the_arm_through_the_integral_needs_ki_on_every_axis(arm_plant):
-    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=[200.0, 0.0, 200.0])
+    pid = CartesianPid(
+        arm_plant,
+        frame_name="fingertip",
+        coordinates=PLANAR_COORDINATES,
+        kp=KP,
+        kd=KD,
+        ki=[200.0, 0.0, 200.0],
+    )
     q = np.array([-0.45, 1.66, 0.36])
     with pytest.raises(ValueError, match="ki > 0 on all axes"):
         pid.holding_integral(np.r_[q, 0, 0, 0], np.ones(3))
@@ -223,7 +269,9 @@ def test_holding_the_arm_through_the_integral_needs_ki_on_every_axis(arm_plant):
 def test_torque_is_clipped_when_every_joint_saturates(arm_plant):
     """1 m and 1 rad of error on every axis ask for far more than any actuator gives: the
     output is the limits themselves, with the unclipped torque's signs."""
-    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI)
+    pid = CartesianPid(
+        arm_plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES, kp=KP, kd=KD, ki=KI
+    )
     q = np.array([-0.45, 1.66, 0.36])
     X, J = eq18(q)
     for sign in (+1.0, -1.0):
@@ -240,7 +288,9 @@ def test_torque_is_clipped_when_every_joint_saturates(arm_plant):
 def test_autodiff_pid_clips_and_winds_back_like_the_float_one(arm_plant, sign):
     """The AutoDiffXd law (what Linearize uses) saturates at the same limits, both signs,
     with zero derivative where clipped, and the same back-calculation rate."""
-    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI)
+    pid = CartesianPid(
+        arm_plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES, kp=KP, kd=KD, ki=KI
+    )
     pid_ad = pid.ToAutoDiffXd()
     q = np.array([-0.45, 1.66, 0.36])
     X, _ = eq18(q)
@@ -273,7 +323,9 @@ def test_autodiff_pid_clips_and_winds_back_like_the_float_one(arm_plant, sign):
 def test_back_calculation_leaves_axes_without_integral_alone(arm_plant):
     """ki = 0 on y: that axis has no integral to unwind, its rate stays ec_y (finite)."""
     ki = [200.0, 0.0, 200.0]
-    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=ki)
+    pid = CartesianPid(
+        arm_plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES, kp=KP, kd=KD, ki=ki
+    )
     q = np.array([-0.45, 1.66, 0.36])
     X, _ = eq18(q)
     error = np.array([0.5, 0.01, 0.0])
@@ -287,7 +339,15 @@ def test_back_calculation_leaves_axes_without_integral_alone(arm_plant):
 
 def test_sampled_pid_has_no_continuous_state_and_reads_its_integral_anew(arm_plant):
     """The sampled law's cache follows the discrete state: a new integral gives a new update."""
-    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI, period=0.001)
+    pid = CartesianPid(
+        arm_plant,
+        frame_name="fingertip",
+        coordinates=PLANAR_COORDINATES,
+        kp=KP,
+        kd=KD,
+        ki=KI,
+        period=0.001,
+    )
     q = np.array([-0.45, 1.66, 0.36])
     X, J = eq18(q)
     context = _pid_context(pid, q, np.zeros(3), X, np.zeros(3), np.zeros(3))
@@ -303,7 +363,15 @@ def test_sampled_anti_windup_tracking_time_is_five_periods(arm_plant):
     """Without D the tracking time sqrt(Kd / Ki) is 0: it is max(10 ms, 5 periods), 50 ms
     at a 10 ms period, so the integral moves by h (ec + J^-T dtau / (Ki 0.05))."""
     period = 0.01
-    pid = CartesianPid(arm_plant, kp=KP, kd=0.0, ki=KI, period=period)
+    pid = CartesianPid(
+        arm_plant,
+        frame_name="fingertip",
+        coordinates=PLANAR_COORDINATES,
+        kp=KP,
+        kd=0.0,
+        ki=KI,
+        period=period,
+    )
     q = np.array([-0.45, 1.66, 0.36])
     X, J = eq18(q)
     error = np.array([0.5, 0.0, 0.0])
@@ -344,7 +412,9 @@ def test_the_pid_needs_one_actuator_per_joint(order):
     plant = _arm_with_transmissions(order)
     assert plant.num_actuated_dofs() == len(order)
     with pytest.raises(ValueError, match="fully actuated"):
-        CartesianPid(plant, kp=KP, kd=KD, ki=KI)
+        CartesianPid(
+            plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES, kp=KP, kd=KD, ki=KI
+        )
 
 
 def test_every_joint_that_moves_the_frame_needs_an_actuator():
@@ -352,7 +422,9 @@ def test_every_joint_that_moves_the_frame_needs_an_actuator():
     fingertip and has none: the torque J^T F_PID asks of it would never be applied."""
     plant = _arm_with_transmissions([0, 1])
     with pytest.raises(ValueError, match="joint 'joint3' moves 'fingertip' but has no actuator"):
-        CartesianPid(plant, kp=KP[:2], kd=KD[:2], ki=KI[:2], coordinates=("x", "y"))
+        CartesianPid(
+            plant, frame_name="fingertip", coordinates=("x", "y"), kp=KP[:2], kd=KD[:2], ki=KI[:2]
+        )
 
 
 def test_actuation_follows_the_actuator_order_not_the_joint_order():
@@ -361,7 +433,9 @@ def test_actuation_follows_the_actuator_order_not_the_joint_order():
     plant = _arm_with_transmissions([2, 1, 0])
     joints = [plant.get_joint_actuator(i).joint().name() for i in plant.GetJointActuatorIndices()]
     assert joints == ["joint3", "joint2", "joint1"]
-    pid = CartesianPid(plant, kp=KP, kd=KD, ki=KI)
+    pid = CartesianPid(
+        plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES, kp=KP, kd=KD, ki=KI
+    )
     np.testing.assert_allclose(pid.effort_limits, [5.0, 20.0, 30.0])
     q = np.array([-0.45, 1.66, 0.36])
     X, J = eq18(q)
@@ -374,7 +448,9 @@ def test_actuation_follows_the_actuator_order_not_the_joint_order():
 
 def test_continuous_pid_reads_its_integral_anew(arm_plant):
     """The continuous law's cache follows the continuous state: a new integral, a new torque."""
-    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI)
+    pid = CartesianPid(
+        arm_plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES, kp=KP, kd=KD, ki=KI
+    )
     q = np.array([-0.45, 1.66, 0.36])
     X, J = eq18(q)
     context = _pid_context(pid, q, np.zeros(3), X, np.zeros(3), np.zeros(3))
@@ -390,7 +466,14 @@ def test_continuous_pid_reads_its_integral_anew(arm_plant):
 )
 def test_back_calculation_tracking_time(arm_plant, kd, ki, tracking):
     """Tt = sqrt(Kd / Ki) on x (10 s for Kd = 50, Ki = 0.5), never under 10 ms (Kd = 0)."""
-    pid = CartesianPid(arm_plant, kp=KP, kd=[kd, 50.0, 5.0], ki=[ki, 200.0, 200.0])
+    pid = CartesianPid(
+        arm_plant,
+        frame_name="fingertip",
+        coordinates=PLANAR_COORDINATES,
+        kp=KP,
+        kd=[kd, 50.0, 5.0],
+        ki=[ki, 200.0, 200.0],
+    )
     q = np.array([-0.45, 1.66, 0.36])
     X, J = eq18(q)
     error = np.array([0.5, 0.0, 0.0])
@@ -403,7 +486,9 @@ def test_back_calculation_tracking_time(arm_plant, kd, ki, tracking):
 
 def test_cartesian_error_is_the_wrapped_pose_error_even_when_saturated(arm_plant):
     """ec = Xc - h(q), angle wrapped; while saturated dz/dt differs from it, ec does not."""
-    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI)
+    pid = CartesianPid(
+        arm_plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES, kp=KP, kd=KD, ki=KI
+    )
     q = np.array([-0.45, 1.66, 0.36])
     X, _ = eq18(q)
     commanded = X + [0.5, -0.01, 2 * math.pi + 0.002]
@@ -418,7 +503,15 @@ def test_sampled_pid_latches_its_first_sample_at_t_0(arm_plant):
     other offset gives the same times. After 1.5 periods the held torque is the second
     sample's, with the integral advanced once: J^T (Kp ec + Ki h ec)."""
     period = 0.03
-    pid = CartesianPid(arm_plant, kp=KP, kd=KD, ki=KI, period=period)
+    pid = CartesianPid(
+        arm_plant,
+        frame_name="fingertip",
+        coordinates=PLANAR_COORDINATES,
+        kp=KP,
+        kd=KD,
+        ki=KI,
+        period=period,
+    )
     q = np.array([-0.45, 1.66, 0.36])
     X, J = eq18(q)
     error = np.array([1e-3, 0.0, 0.0])
@@ -434,7 +527,7 @@ def test_the_law_alone_is_keyword_only_continuous_by_default_and_reads_its_integ
     input (the Integrator's state in ``CartesianPid``), which it refuses to set itself."""
     with pytest.raises(TypeError):
         CartesianPidLaw(arm_plant, KP, KD, KI)
-    law = CartesianPidLaw(arm_plant, kp=KP, kd=KD, ki=KI)
+    law = CartesianPidLaw(arm_plant, coordinates=PLANAR_COORDINATES, kp=KP, kd=KD, ki=KI)
     assert law.period == 0.0
     assert law.HasOutputPort("actuation_and_integral_rate")
     with pytest.raises(ValueError, match="integral is its input"):
@@ -445,7 +538,14 @@ def test_holding_integral_of_a_task_with_fewer_coordinates_than_joints(arm_plant
     """(x, y) on the three-joint arm: J is 2 x 3 and J^T Ki z = tau is solved in the least
     squares sense. For tau = J^T F (in the range of J^T), the solution is exact: z = F / Ki.
     Measured relative error 2e-16; 1e-12 leaves room for the rounding of the solve."""
-    pid = CartesianPid(arm_plant, kp=KP[:2], kd=KD[:2], ki=KI[:2], coordinates=("x", "y"))
+    pid = CartesianPid(
+        arm_plant,
+        frame_name="fingertip",
+        coordinates=("x", "y"),
+        kp=KP[:2],
+        kd=KD[:2],
+        ki=KI[:2],
+    )
     q = np.array([-0.45, 1.66, 0.36])
     _, J = eq18(q)
     force = np.array([3.0, -7.0])
@@ -463,7 +563,9 @@ def test_holding_integral_leaves_the_bodies_the_arm_does_not_move_alone():
     plant.AddRigidBody("box", arm, SpatialInertia.SolidBoxWithMass(1.0, 0.1, 0.1, 0.1))
     plant.Finalize()
     assert (plant.num_velocities(), plant.num_actuated_dofs()) == (9, 3)
-    pid = CartesianPid(plant, kp=KP, kd=KD, ki=KI)
+    pid = CartesianPid(
+        plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES, kp=KP, kd=KD, ki=KI
+    )
     q = np.array([-0.45, 1.66, 0.36])
     _, J = eq18(q)
     context = plant.CreateDefaultContext()

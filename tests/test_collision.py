@@ -28,14 +28,11 @@ from admittance.diagrams.robots.planar_arm.run import run_scenario
 from admittance.diagrams.robots.planar_arm.safety_layer import STOP_SPEED
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.diagrams.scenario.schema import ScenarioError
-from admittance.systems.fault_detector import (
-    FAULT_FLAGS,
-    SensorFaultDetector,
-    collision_tolerance,
-    unexplained_torque,
-)
+from admittance.systems.collision_check import collision_tolerance, unexplained_torque
+from admittance.systems.contact_frame import ContactFrame
+from admittance.systems.fault_detector import FAULT_FLAGS, FaultDetectorParams, SensorFaultDetector
 from admittance.systems.joint_torque_fault import JointTorqueFault, JointTorqueFault_
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 
 PERIOD = 0.005
 TOLERANCE = 1.12  # 0.2 Fr + 6 sigma for Fr = 5 N, sigma = 0.02 N
@@ -46,7 +43,7 @@ POSE = [0.2, -0.25, math.pi / 2]
 
 def _normal_row(arm_plant, pose=POSE):
     q = SolvePlanarInverseKinematics(arm_plant, "fingertip", pose, [-0.45, 1.66, 0.36])
-    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.concatenate([q, np.zeros(3)]))
     return q, kinematics.jacobian()
 
@@ -74,12 +71,15 @@ def test_a_torque_along_j_is_explained_and_one_orthogonal_to_it_is_not(arm_plant
 def _monitor(arm_plant):
     detector = SensorFaultDetector(
         arm_plant,
-        period=PERIOD,
-        noise_std=0.02,
-        saturation_force=111.03,
-        contact_force=0.5,
-        force_tolerance=TOLERANCE,
-        observer_gain=OBSERVER_GAIN,
+        contact=ContactFrame(frame_name="fingertip", coordinates=PLANAR_COORDINATES, normal_axis=0),
+        params=FaultDetectorParams(
+            period=PERIOD,
+            noise_std=0.02,
+            saturation_force=111.03,
+            contact_force=0.5,
+            force_tolerance=TOLERANCE,
+            observer_gain=OBSERVER_GAIN,
+        ),
     )
     context = detector.CreateDefaultContext()
     q, jacobian = _normal_row(arm_plant)

@@ -23,9 +23,13 @@ from admittance.diagrams.robots.spatial_arm.plant import (
 )
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.systems.contact_force_observer import ContactForceObserver
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.contact_frame import ContactFrame
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 from admittance.systems.spatial_kinematics import SPATIAL_COORDINATES, SpatialFrameKinematics
 from admittance.urdf import PLANAR_ARM_URDF
+
+# The planar arm's fingertip, X = (x, y, theta) in world, the wall's normal x.
+TIP = ContactFrame(frame_name="fingertip", coordinates=PLANAR_COORDINATES, normal_axis=0)
 
 POSE = [0.2, -0.25, math.pi / 2]
 
@@ -34,7 +38,7 @@ POSE = [0.2, -0.25, math.pi / 2]
 def arm(arm_plant):
     q = SolvePlanarInverseKinematics(arm_plant, "fingertip", POSE, [-0.45, 1.66, 0.36])
     v = np.array([0.3, -0.2, 0.1])  # moving: p = M v is not zero
-    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.concatenate([q, v]))
     return arm_plant, np.concatenate([q, v]), kinematics.jacobian()
 
@@ -44,7 +48,7 @@ def test_a_settled_observer_reads_the_wall_force_from_the_joint_torques(arm, wal
     """With r set to the external torque J^T (-F) of a wall force F (compressive along x),
     the estimate is F_x: the normal force, whatever the tangential force and moment."""
     plant, state, jacobian = arm
-    observer = ContactForceObserver(plant)
+    observer = ContactForceObserver(plant, contact=TIP)
     context = observer.CreateDefaultContext()
     observer.estimated_state_input.FixValue(context, state)
     observer.actuation_input.FixValue(context, np.zeros(3))
@@ -59,7 +63,7 @@ def test_the_integral_follows_the_applied_gravity_and_external_torques(arm):
     order), tau_g from the plant, dT/dq (= C(q, v)^T v) the kinetic energy's gradient by
     AutoDiffXd, and r = K_o (M v - p_I) = the external torque set."""
     plant, state, jacobian = arm
-    observer = ContactForceObserver(plant, gain=50.0)
+    observer = ContactForceObserver(plant, contact=TIP, gain=50.0)
     context = observer.CreateDefaultContext()
     observer.estimated_state_input.FixValue(context, state)
     actuation = np.array([1.5, -0.7, 0.2])
@@ -79,7 +83,7 @@ def test_the_integral_follows_the_applied_gravity_and_external_torques(arm):
         rate, actuation + gravity + external + coriolis, rtol=1e-12, atol=1e-10
     )
     # Without the term (the observer as it was), the plant's terms alone.
-    plain = ContactForceObserver(plant, gain=50.0, coriolis=False)
+    plain = ContactForceObserver(plant, contact=TIP, gain=50.0, coriolis=False)
     plain_context = plain.CreateDefaultContext()
     plain.estimated_state_input.FixValue(plain_context, state)
     plain.actuation_input.FixValue(plain_context, actuation)
@@ -100,13 +104,13 @@ def test_the_integral_follows_the_applied_gravity_and_external_torques(arm):
 
 
 def test_the_gain_is_checked_keyword_only_and_defaults_to_100_per_second(arm_plant):
-    assert ContactForceObserver(arm_plant).gain == 100.0
-    assert ContactForceObserver(arm_plant, gain=0.5).gain == 0.5
+    assert ContactForceObserver(arm_plant, contact=TIP).gain == 100.0
+    assert ContactForceObserver(arm_plant, contact=TIP, gain=0.5).gain == 0.5
     for gain in (0.0, -1.0, math.inf):
         with pytest.raises(ValueError, match="gain must be > 0"):
-            ContactForceObserver(arm_plant, gain=gain)
+            ContactForceObserver(arm_plant, contact=TIP, gain=gain)
     with pytest.raises(TypeError):
-        ContactForceObserver(arm_plant, "fingertip", 100.0)
+        ContactForceObserver(arm_plant, TIP, 100.0)
 
 
 # --- the full momentum dynamics: C(q, v)^T v ------------------------------------------
@@ -128,7 +132,7 @@ def _falling_arm(plant, coriolis: bool, duration: float):
     builder = DiagramBuilder()
     arm, _ = AddPlanarArm(builder, PLANAR_ARM_URDF)
     arm.mutable_gravity_field().set_gravity_vector([0.0, 0.0, 0.0])  # coasting
-    observer = builder.AddSystem(ContactForceObserver(arm, coriolis=coriolis))
+    observer = builder.AddSystem(ContactForceObserver(arm, contact=TIP, coriolis=coriolis))
     torque = builder.AddSystem(ConstantVectorSource(np.zeros(3)))
     builder.Connect(arm.get_state_output_port(), observer.estimated_state_input)
     builder.Connect(torque.get_output_port(), observer.actuation_input)
@@ -189,7 +193,7 @@ def test_the_full_observer_reads_no_force_on_an_arm_moving_freely_at_1_rad_per_s
     np.testing.assert_allclose(old_torque, expected, rtol=0, atol=1e-6)
     # Its spurious force along the wall normal, -(J^-T r)_x, with r from the lag model:
     # up to 21 mN here (measured), 1e-6 N apart (5e-8 measured).
-    kinematics = PlanarFrameKinematics(plant, "fingertip")
+    kinematics = PlanarFrameKinematics(plant, "fingertip", coordinates=PLANAR_COORDINATES)
     spurious = []
     for state, torque in zip(states, expected, strict=True):
         kinematics.set_state(state)
@@ -218,7 +222,8 @@ def test_on_the_panda_the_observer_reads_the_force_along_the_control_frame_z():
     nv = plant.num_velocities()
     state = np.concatenate([loop.initial_positions, np.ones(nv)])
     task = dict(coordinates=SPATIAL_COORDINATES, expressed_in=CONTROL_FRAME)
-    observer = ContactForceObserver(plant, frame_name=TOOL_TIP_FRAME, normal_axis=2, **task)
+    tool = ContactFrame(frame_name=TOOL_TIP_FRAME, normal_axis=2, **task)
+    observer = ContactForceObserver(plant, contact=tool)
     context = observer.CreateDefaultContext()
     observer.estimated_state_input.FixValue(context, state)
     observer.actuation_input.FixValue(context, np.zeros(plant.num_actuated_dofs()))
@@ -257,7 +262,7 @@ def test_the_sampled_observer_steps_r_toward_the_external_torque_by_euler(arm_pl
     q = SolvePlanarInverseKinematics(plant, "fingertip", POSE, [-0.45, 1.66, 0.36])
     state = np.concatenate([q, np.zeros(3)])
     torque = np.array([0.4, -0.2, 0.05])
-    observer = ContactForceObserver(plant, gain=gain, period=h)
+    observer = ContactForceObserver(plant, contact=TIP, gain=gain, period=h)
     context = observer.CreateDefaultContext()
     observer.estimated_state_input.FixValue(context, state)
     observer.actuation_input.FixValue(context, torque)
@@ -272,4 +277,4 @@ def test_the_sampled_observer_steps_r_toward_the_external_torque_by_euler(arm_pl
         residual = observer.external_torque_output.Eval(context)
         assert np.allclose(residual, expected, rtol=0, atol=1e-12)
     with pytest.raises(ValueError, match="period"):
-        ContactForceObserver(plant, gain=gain, period=0.03)  # K_o h = 3 > 2: unstable
+        ContactForceObserver(plant, contact=TIP, gain=gain, period=0.03)  # K_o h = 3 > 2: unstable

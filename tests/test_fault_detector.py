@@ -4,37 +4,44 @@ before the fault."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
 from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
+from admittance.systems.contact_frame import ContactFrame
 from admittance.systems.fault_detector import (
     FAULT_FLAGS,
+    FaultDetectorParams,
     SensorFaultDetector,
     plausibility_allowance,
 )
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 
 PERIOD = 0.005
 NOISE = 0.02
 FULL_SCALE = 111.03
 TOLERANCE = 1.0 + 6 * NOISE  # 0.2 Fr + 6 sigma, as the layer sets it for Fr = 5 N
+# The fingertip, X = (x, y, theta) in world, the wall's normal x.
+TIP = ContactFrame(frame_name="fingertip", coordinates=PLANAR_COORDINATES, normal_axis=0)
+# The monitor of these tests: T = 5 ms, sigma = 0.02 N, F_c = 0.5 N, K_o = 100 1/s.
+DETECTOR = FaultDetectorParams(
+    period=PERIOD,
+    noise_std=NOISE,
+    saturation_force=FULL_SCALE,
+    contact_force=0.5,
+    force_tolerance=TOLERANCE,
+    observer_gain=100.0,
+)
 
 
 def _detector(arm_plant, **overrides):
-    """The monitor of these tests: T = 5 ms, sigma = 0.02 N, F_c = 0.5 N, K_o = 100 1/s."""
-    arguments = dict(
-        period=PERIOD,
-        noise_std=NOISE,
-        saturation_force=FULL_SCALE,
-        contact_force=0.5,
-        force_tolerance=TOLERANCE,
-        observer_gain=100.0,
+    """The monitor of these tests (DETECTOR), with `overrides`."""
+    return SensorFaultDetector(
+        arm_plant, contact=TIP, params=dataclasses.replace(DETECTOR, **overrides)
     )
-    arguments.update(overrides)
-    return SensorFaultDetector(arm_plant, **arguments)
 
 
 def _at_the_pose(arm_plant, detector, tip_velocity=(0.0, 0.0, 0.0)):
@@ -44,7 +51,7 @@ def _at_the_pose(arm_plant, detector, tip_velocity=(0.0, 0.0, 0.0)):
     q = SolvePlanarInverseKinematics(
         arm_plant, "fingertip", [0.2, -0.25, math.pi / 2], [-0.45, 1.66, 0.36]
     )
-    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.concatenate([q, np.zeros(3)]))
     v = np.linalg.solve(kinematics.jacobian(), tip_velocity)
     detector.estimated_state_input.FixValue(context, np.concatenate([q, v]))
@@ -375,7 +382,7 @@ def test_evidence_is_strictly_beyond_the_tolerance(arm_plant):
     assert not any(_sample(monitor, 5.0, observed=6.0)["implausible"] for _ in range(4))
     detector, context = _quiet_moving(arm_plant, [0.01, 0.0, 0.0])
     state = detector.estimated_state_input.Eval(context)
-    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(state)
     speed = abs((kinematics.jacobian() @ state[3:])[0])
     edge = _detector(arm_plant, noise_std=0.0, force_tolerance=5e4 * speed * PERIOD)

@@ -140,7 +140,7 @@ def test_a_noisy_dropout_in_a_run_shows_the_sensors_noise():
 
 
 def test_admittance_holds_its_reference_on_an_invalid_measurement():
-    block = OptimalAdmittance(gamma=1e-5, alpha=0.1, stiffness=2500.0)
+    block = OptimalAdmittance(gamma=1e-5, alpha=0.1, stiffness=2500.0, force_axes=(0,), num_axes=3)
     context = block.CreateDefaultContext()
     context.SetContinuousState([40.0])
     block.desired_force_input.FixValue(context, [5.0])
@@ -157,7 +157,13 @@ def test_admittance_travel_bound_and_back_calculation():
     with rate E + (Xr_clamped - Xr) / (Gamma K tau_aw), tau_aw = 10 ms."""
     gain = 1e-5 * 2500.0
     block = OptimalAdmittance(
-        gamma=1e-5, alpha=0.1, stiffness=2500.0, max_push=0.01, max_retract=0.02
+        gamma=1e-5,
+        alpha=0.1,
+        stiffness=2500.0,
+        max_push=0.01,
+        max_retract=0.02,
+        force_axes=(0,),
+        num_axes=3,
     )
     context = block.CreateDefaultContext()
     block.desired_force_input.FixValue(context, [5.0])
@@ -179,7 +185,9 @@ def test_admittance_travel_bound_and_back_calculation():
 
 
 def test_admittance_with_faults_converts_to_autodiff():
-    block = OptimalAdmittance(gamma=1e-5, alpha=0.1, stiffness=2500.0, max_push=0.01)
+    block = OptimalAdmittance(
+        gamma=1e-5, alpha=0.1, stiffness=2500.0, max_push=0.01, force_axes=(0,), num_axes=3
+    )
     block_ad = block.ToAutoDiffXd()
     context = block_ad.CreateDefaultContext()
     block_ad.GetInputPort("desired_force").FixValue(context, [AutoDiffXd(5.0, [0.0])])

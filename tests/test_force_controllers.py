@@ -31,7 +31,9 @@ def _fix(block, measured, desired, state=None):
 
 
 def test_classical_admittance_is_a_mass_damper_spring_on_the_force_error():
-    block = ClassicalAdmittance(mass=0.5, damping=40.0, stiffness=100.0)
+    block = ClassicalAdmittance(
+        mass=0.5, damping=40.0, stiffness=100.0, force_axes=(0,), num_axes=3
+    )
     # Xr = 2 mm, dXr/dt = 0.1 m/s, E = 5 - 3 = 2 N:
     # M a = E - D v - Ks x = 2 - 4 - 0.2 = -2.2 N -> a = -4.4 m/s^2.
     context = _fix(block, measured=3.0, desired=5.0, state=[0.002, 0.1])
@@ -40,7 +42,9 @@ def test_classical_admittance_is_a_mass_damper_spring_on_the_force_error():
 
 
 def test_adaptive_impedance_follows_jung_hsia_bonitz():
-    block = AdaptiveImpedance(mass=0.5, damping=40.0, adaptation_rate=10.0)
+    block = AdaptiveImpedance(
+        mass=0.5, damping=40.0, adaptation_rate=10.0, force_axes=(0,), num_axes=3
+    )
     # Xr = 1 mm, dXr/dt = 0.01 m/s, Phi = 0.02 m/s, E = 2 N:
     # m a = E + b Phi - b v = 2 + 0.8 - 0.4 = 2.4 N -> a = 4.8; Phi' = 10 * 2 / 40 = 0.5.
     context = _fix(block, measured=3.0, desired=5.0, state=[0.001, 0.01, 0.02])
@@ -49,7 +53,7 @@ def test_adaptive_impedance_follows_jung_hsia_bonitz():
 
 
 def test_fixed_reference_is_eq_6():
-    block = FixedReference(wall_position=0.201, wall_stiffness=5e4)
+    block = FixedReference(wall_position=0.201, wall_stiffness=5e4, force_axes=(0,), num_axes=3)
     context = _fix(block, measured=0.0, desired=5.0)
     block.desired_position_input.FixValue(context, [0.2, -0.25, math.pi / 2])
     # Xr = Xe + Fr / Ke - Xd = 0.201 + 1e-4 - 0.2 = 1.1 mm, on x only.
@@ -61,9 +65,17 @@ def test_fixed_reference_is_eq_6():
 @pytest.mark.parametrize(
     "block, state",
     [
-        (ClassicalAdmittance(mass=0.5, damping=40.0), [0.001, 0.01]),
-        (AdaptiveImpedance(mass=0.5, damping=40.0, adaptation_rate=10.0), [0.001, 0.01, 0.0]),
-        (OptimalAdmittance(gamma=1e-5, alpha=0.1, stiffness=2500.0), [0.3]),
+        (ClassicalAdmittance(mass=0.5, damping=40.0, force_axes=(0,), num_axes=3), [0.001, 0.01]),
+        (
+            AdaptiveImpedance(
+                mass=0.5, damping=40.0, adaptation_rate=10.0, force_axes=(0,), num_axes=3
+            ),
+            [0.001, 0.01, 0.0],
+        ),
+        (
+            OptimalAdmittance(gamma=1e-5, alpha=0.1, stiffness=2500.0, force_axes=(0,), num_axes=3),
+            [0.3],
+        ),
     ],
     ids=["classical", "adaptive", "optimal"],
 )
@@ -90,9 +102,11 @@ def test_the_force_error_of_a_broken_reading_is_zero_for_autodiff_too():
 @pytest.mark.parametrize(
     "block",
     [
-        ClassicalAdmittance(mass=0.5, damping=40.0),
-        AdaptiveImpedance(mass=0.5, damping=40.0, adaptation_rate=10.0),
-        FixedReference(wall_position=0.2, wall_stiffness=5e4),
+        ClassicalAdmittance(mass=0.5, damping=40.0, force_axes=(0,), num_axes=3),
+        AdaptiveImpedance(
+            mass=0.5, damping=40.0, adaptation_rate=10.0, force_axes=(0,), num_axes=3
+        ),
+        FixedReference(wall_position=0.2, wall_stiffness=5e4, force_axes=(0,), num_axes=3),
     ],
     ids=["classical", "adaptive", "fixed"],
 )
@@ -113,8 +127,10 @@ def test_baselines_have_the_admittance_ports_and_convert_to_autodiff(block):
     ],
 )
 def test_classical_admittance_arguments_are_checked(kwargs, message):
+    arguments = dict(force_axes=(0,), num_axes=3)
+    arguments.update(kwargs)
     with pytest.raises(ValueError, match=message):
-        ClassicalAdmittance(**kwargs)
+        ClassicalAdmittance(**arguments)
 
 
 def test_matched_tuning_gives_the_paper_s_crossover():
@@ -170,7 +186,7 @@ def test_classical_admittance_on_two_axes_keeps_each_axis_its_own_gains():
     """Force on x and theta (axes 0 and 2), different M, D, Ks each; by hand, per axis:
     a = (E - D v - Ks x) / M, with state (x0, x2, v0, v2)."""
     block = ClassicalAdmittance(
-        mass=[0.5, 2.0], damping=[40.0, 10.0], stiffness=[100.0, 0.0], force_axes=[0, 2]
+        mass=[0.5, 2.0], damping=[40.0, 10.0], stiffness=[100.0, 0.0], force_axes=[0, 2], num_axes=3
     )
     assert block.gains["mass"].tolist() == [0.5, 2.0]
     context = _fix_axes(block, [3.0, 1.0], [5.0, 0.0], [0.002, 0.01, 0.1, -0.2])
@@ -189,6 +205,7 @@ def test_adaptive_impedance_on_three_axes_keeps_each_axis_its_own_gains():
         damping=[40.0, 10.0, 20.0],
         adaptation_rate=[10.0, 5.0, 2.0],
         force_axes=[0, 1, 2],
+        num_axes=3,
     )
     assert block.gains["adaptation_rate"].tolist() == [10.0, 5.0, 2.0]
     state = [0.001, 0.002, 0.003, 0.01, -0.1, 0.0, 0.02, 0.3, 0.0]
@@ -205,14 +222,16 @@ def test_adaptive_impedance_on_three_axes_keeps_each_axis_its_own_gains():
 
 def test_classical_admittance_is_a_mass_damper_by_default():
     """Without stiffness: Ks = 0, so the offset itself does not pull back (a = (E - D v) / M)."""
-    block = ClassicalAdmittance(mass=0.5, damping=40.0)
+    block = ClassicalAdmittance(mass=0.5, damping=40.0, force_axes=(0,), num_axes=3)
     context = _fix(block, measured=3.0, desired=5.0, state=[0.002, 0.1])
     np.testing.assert_allclose(block.EvalTimeDerivatives(context).CopyToVector(), [0.1, -4.0])
 
 
 def test_fixed_reference_on_two_axes_subtracts_each_axis_own_desired_position():
     """force_axes [2, 0]: entry i of the estimates belongs to axis force_axes[i]."""
-    block = FixedReference(wall_position=[0.5, 0.201], wall_stiffness=[1e3, 5e4], force_axes=[2, 0])
+    block = FixedReference(
+        wall_position=[0.5, 0.201], wall_stiffness=[1e3, 5e4], force_axes=[2, 0], num_axes=3
+    )
     context = block.CreateDefaultContext()
     block.measured_force_input.FixValue(context, [0.0, 0.0])
     block.desired_force_input.FixValue(context, [2.0, 5.0])
@@ -226,9 +245,16 @@ def test_fixed_reference_on_two_axes_subtracts_each_axis_own_desired_position():
 @pytest.mark.parametrize(
     "make, state",
     [
-        (lambda: ClassicalAdmittance(mass=0.5, damping=40.0, stiffness=100.0), [0.002, 0.1]),
         (
-            lambda: AdaptiveImpedance(mass=0.5, damping=40.0, adaptation_rate=10.0),
+            lambda: ClassicalAdmittance(
+                mass=0.5, damping=40.0, stiffness=100.0, force_axes=(0,), num_axes=3
+            ),
+            [0.002, 0.1],
+        ),
+        (
+            lambda: AdaptiveImpedance(
+                mass=0.5, damping=40.0, adaptation_rate=10.0, force_axes=(0,), num_axes=3
+            ),
             [0.001, 0.01, 0.02],
         ),
     ],
@@ -251,7 +277,9 @@ def test_baselines_converted_to_autodiff_keep_their_law(make, state):
 
 
 def test_fixed_reference_converted_to_autodiff_keeps_its_law():
-    block = FixedReference(wall_position=0.201, wall_stiffness=5e4).ToAutoDiffXd()
+    block = FixedReference(
+        wall_position=0.201, wall_stiffness=5e4, force_axes=(0,), num_axes=3
+    ).ToAutoDiffXd()
     context = block.CreateDefaultContext()
     block.measured_force_input.FixValue(context, [AutoDiffXd(0.0)])
     block.desired_force_input.FixValue(context, [AutoDiffXd(5.0, [1.0])])
@@ -278,15 +306,42 @@ def test_baseline_arguments_are_keyword_only(make):
 @pytest.mark.parametrize(
     "make, message",
     [
-        (lambda: AdaptiveImpedance(mass=0.0, damping=1.0, adaptation_rate=1.0), "mass must be > 0"),
-        (lambda: AdaptiveImpedance(mass=1.0, damping=0.0, adaptation_rate=1.0), "damping"),
         (
-            lambda: AdaptiveImpedance(mass=1.0, damping=1.0, adaptation_rate=0.0),
+            lambda: AdaptiveImpedance(
+                mass=0.0, damping=1.0, adaptation_rate=1.0, force_axes=(0,), num_axes=3
+            ),
+            "mass must be > 0",
+        ),
+        (
+            lambda: AdaptiveImpedance(
+                mass=1.0, damping=0.0, adaptation_rate=1.0, force_axes=(0,), num_axes=3
+            ),
+            "damping",
+        ),
+        (
+            lambda: AdaptiveImpedance(
+                mass=1.0, damping=1.0, adaptation_rate=0.0, force_axes=(0,), num_axes=3
+            ),
             "adaptation_rate must be > 0",
         ),
-        (lambda: FixedReference(wall_position=math.nan, wall_stiffness=5e4), "wall_position"),
-        (lambda: FixedReference(wall_position=0.2, wall_stiffness=0.0), "wall_stiffness"),
-        (lambda: FixedReference(wall_position=0.2, wall_stiffness=5e4, force_axes=[3]), "axes"),
+        (
+            lambda: FixedReference(
+                wall_position=math.nan, wall_stiffness=5e4, force_axes=(0,), num_axes=3
+            ),
+            "wall_position",
+        ),
+        (
+            lambda: FixedReference(
+                wall_position=0.2, wall_stiffness=0.0, force_axes=(0,), num_axes=3
+            ),
+            "wall_stiffness",
+        ),
+        (
+            lambda: FixedReference(
+                wall_position=0.2, wall_stiffness=5e4, force_axes=[3], num_axes=3
+            ),
+            "axes",
+        ),
     ],
 )
 def test_baseline_arguments_are_checked(make, message):

@@ -20,7 +20,8 @@ from admittance.diagrams.robots.planar_arm.run import run_scenario
 from admittance.diagrams.robots.planar_arm.scenario import ArmConfig
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.systems.contact_force_observer import ContactForceObserver
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.contact_frame import ContactFrame
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 
 # The stated motor-side viscous friction, N m s/rad (docs/safety.md, section 3).
 MOTOR_DAMPING = 2.4e-6
@@ -54,7 +55,8 @@ def test_the_observer_reads_the_damping_torque_as_a_force_below_the_tolerance():
     plant = _arm(MOTOR_DAMPING)
     pose = [0.15, -0.25, math.pi / 2]
     q = SolvePlanarInverseKinematics(plant, "fingertip", pose, [-0.45, 1.66, 0.36])
-    observer = ContactForceObserver(plant, gain=100.0)
+    tip = ContactFrame(frame_name="fingertip", coordinates=PLANAR_COORDINATES, normal_axis=0)
+    observer = ContactForceObserver(plant, contact=tip, gain=100.0)
     context = observer.CreateDefaultContext()
     speed = 0.024
     jacobian_rows = _jacobian(plant, q)
@@ -69,7 +71,7 @@ def test_the_observer_reads_the_damping_torque_as_a_force_below_the_tolerance():
 
 
 def _jacobian(plant, q):
-    kinematics = PlanarFrameKinematics(plant, "fingertip")
+    kinematics = PlanarFrameKinematics(plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.concatenate([q, np.zeros(3)]))
     return np.array(kinematics.jacobian(), dtype=float)
 

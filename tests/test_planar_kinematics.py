@@ -22,12 +22,12 @@ from pydrake.symbolic import sqrt as symbolic_sqrt
 
 from admittance.systems.expression_code import compile_expressions
 from admittance.systems.planar_kinematics import (
+    PLANAR_COORDINATES,
     PlanarFrameKinematics,
     PlanarKinematics,
     generate_planar_kinematics,
-    split_kinematics,
-    wrap_angle,
 )
+from admittance.systems.task_kinematics import split_kinematics, wrap_angle
 
 LENGTHS = (0.20, 0.20, 0.10)
 
@@ -71,8 +71,8 @@ def _assert_same_kinematics(actual, expected, atol=TOLERANCE):
 
 
 def test_generated_kinematics_are_the_plants_and_eq18(arm_plant):
-    generated = generate_planar_kinematics(arm_plant, "fingertip")
-    plant_path = PlanarFrameKinematics(arm_plant, "fingertip")
+    generated = generate_planar_kinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
+    plant_path = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     rng = np.random.default_rng(19)
     for _ in range(200):
         q = rng.uniform(-math.pi, math.pi, 3)
@@ -115,8 +115,8 @@ def test_another_urdf_works_unchanged():
     Parser(plant).AddModelsFromString(OTHER_URDF, "urdf")
     plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base"))
     plant.Finalize()
-    generated = generate_planar_kinematics(plant, "tip")
-    plant_path = PlanarFrameKinematics(plant, "tip")
+    generated = generate_planar_kinematics(plant, "tip", coordinates=PLANAR_COORDINATES)
+    plant_path = PlanarFrameKinematics(plant, "tip", coordinates=PLANAR_COORDINATES)
     rng = np.random.default_rng(4)
     for _ in range(100):
         state = np.concatenate([rng.uniform(-2.5, 2.5, 4), rng.uniform(-1.0, 1.0, 4)])
@@ -124,20 +124,22 @@ def test_another_urdf_works_unchanged():
 
 
 def test_the_system_outputs_the_generated_kinematics(arm_plant):
-    system = PlanarKinematics(arm_plant)
+    system = PlanarKinematics(arm_plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES)
     context = system.CreateDefaultContext()
     q, v = np.array([-0.45, 1.66, 0.36]), np.array([0.1, -0.2, 0.3])
     system.estimated_state_input.FixValue(context, np.concatenate([q, v]))
     values = system.kinematics_output.Eval(context)
     _assert_same_kinematics(values, eq18(q, v))
-    pose, velocity, jacobian = split_kinematics(values, 3)
+    pose, velocity, jacobian = split_kinematics(values, 3, 3)
     np.testing.assert_allclose(velocity, jacobian @ v, atol=TOLERANCE)
     np.testing.assert_allclose(pose, values[:3])
 
 
 def test_autodiff_asks_the_plant(arm_plant):
     """Linearize differentiates the plant's own kinematics: dX/dq = J."""
-    system = PlanarKinematics(arm_plant).ToAutoDiffXd()
+    system = PlanarKinematics(
+        arm_plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES
+    ).ToAutoDiffXd()
     context = system.CreateDefaultContext()
     q = np.array([-0.45, 1.66, 0.36])
     state = [AutoDiffXd(value, np.eye(6)[i]) for i, value in enumerate(np.r_[q, 0, 0, 0])]
@@ -151,7 +153,7 @@ def test_autodiff_asks_the_plant(arm_plant):
 
 @pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
 def test_a_state_that_is_not_finite_is_named(arm_plant, bad):
-    system = PlanarKinematics(arm_plant)
+    system = PlanarKinematics(arm_plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES)
     context = system.CreateDefaultContext()
     system.estimated_state_input.FixValue(context, [0.1, bad, 0.0, 0.0, 0.0, 0.0])
     with pytest.raises(RuntimeError, match="state is not finite"):
@@ -202,7 +204,7 @@ def test_task_vectors_of_other_coordinates_and_their_jacobian_rows(arm_plant):
     (x, y, theta) in that order; z is 0 and its Jacobian row is zero (the arm moves in the
     x-y plane). A name built at run time (not an interned literal) counts as well."""
     q = np.array([-0.45, 1.66, 0.36])
-    planar = PlanarFrameKinematics(arm_plant, "fingertip")
+    planar = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     planar.set_state(np.concatenate([q, np.zeros(3)]))
     pose, jacobian = planar.pose(), planar.jacobian()
     theta = "".join(["the", "ta"])
@@ -226,7 +228,9 @@ def test_task_vectors_of_other_coordinates_and_their_jacobian_rows(arm_plant):
         PlanarFrameKinematics(arm_plant, "fingertip", ("x", "y"))
     with pytest.raises(TypeError):
         PlanarKinematics(arm_plant, "fingertip")
-    system = PlanarKinematics(arm_plant)
+    with pytest.raises(TypeError):  # the task is the caller's: no default frame or task
+        PlanarKinematics(arm_plant, frame_name="fingertip")
+    system = PlanarKinematics(arm_plant, frame_name="fingertip", coordinates=PLANAR_COORDINATES)
     assert (system.frame_name, system.num_velocities) == ("fingertip", 3)
 
 
@@ -234,7 +238,7 @@ def test_its_context_holds_the_state_last_set(arm_plant):
     """The safety systems read M(q) and g(q) from this context after set_state: it must be
     the plant context set to [q; v], not a fresh one."""
     q, v = np.array([-0.45, 1.66, 0.36]), np.array([0.1, -0.2, 0.3])
-    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.concatenate([q, v]))
     np.testing.assert_array_equal(arm_plant.GetPositions(kinematics.context), q)
     np.testing.assert_array_equal(arm_plant.GetVelocities(kinematics.context), v)

@@ -4,6 +4,7 @@ damping along the normal; and every system of the layer converts to AutoDiffXd."
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -13,10 +14,12 @@ from pydrake.autodiffutils import AutoDiffXd, InitializeAutoDiff
 from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
 from admittance.systems import contact_model as model
 from admittance.systems.contact_force_observer import ContactForceObserver
-from admittance.systems.fault_detector import SensorFaultDetector
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.contact_frame import ContactFrame
+from admittance.systems.fault_detector import FaultDetectorParams, SensorFaultDetector
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 from admittance.systems.safe_admittance import SafeAdmittance
-from admittance.systems.stiffness_estimator import StiffnessEstimator
+from admittance.systems.safety_numbers import SafeAdmittanceParams
+from admittance.systems.stiffness_estimator import StiffnessEstimator, StiffnessEstimatorParams
 
 GAMMA, ALPHA, KP, KD = 1e-5, 0.1, 2500.0, 50.0
 FR, FMAX, MU = 5.0, 10.0, 4.0
@@ -31,25 +34,28 @@ TOTAL_DAMPING = 0.5 * math.sqrt(MASS * (KP + 1e6))
 ADVANCE = 5.0 / (2500.0 * 0.12 * (1.0 + math.exp(-0.25 * math.pi / math.sqrt(0.9375))))
 
 
+# The fingertip, X = (x, y, theta) in world, the wall's normal x.
+TIP = ContactFrame(frame_name="fingertip", coordinates=PLANAR_COORDINATES, normal_axis=0)
+LAW = SafeAdmittanceParams(
+    gamma=GAMMA,
+    alpha=ALPHA,
+    stiffness=KP,
+    pid_kp=KP,
+    pid_kd=KD,
+    max_force=FMAX,
+    force_bound_gain=MU,
+    max_push=0.01,
+    max_stiffness=1e6,
+    damping_ratio=0.25,
+    stability_margin=3.0,
+    filter_time_constant=FILTER,
+    contact_force=0.5,
+    detection_delay=0.02,
+)
+
+
 def _law(plant, **overrides):
-    arguments = dict(
-        gamma=GAMMA,
-        alpha=ALPHA,
-        stiffness=KP,
-        pid_kp=KP,
-        pid_kd=KD,
-        max_force=FMAX,
-        force_bound_gain=MU,
-        max_push=0.01,
-        max_stiffness=1e6,
-        damping_ratio=0.25,
-        stability_margin=3.0,
-        filter_time_constant=FILTER,
-        contact_force=0.5,
-        detection_delay=0.02,
-    )
-    arguments.update(overrides)
-    return SafeAdmittance(plant, **arguments)
+    return SafeAdmittance(plant, contact=TIP, params=dataclasses.replace(LAW, **overrides))
 
 
 @pytest.fixture
@@ -159,7 +165,7 @@ def test_the_reference_carries_a_damper_along_the_normal(arm_plant, law):
     """A tip moving at 1 cm/s along +x: Xr is lower by (c / Kp) 0.01 m, c = Kd_total - Kd:
     through the PID's spring, a force of -c x'."""
     system, context, q = law
-    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.concatenate([q, np.zeros(3)]))
     v = np.linalg.solve(kinematics.jacobian(), [0.01, 0.0, 0.0])
     still, _, _ = _evaluate(law, FR - 0.2)
@@ -193,18 +199,25 @@ def test_a_run_starts_with_the_reference_at_the_tip(arm_plant, law):
 def test_every_system_of_the_layer_converts_to_autodiff(arm_plant):
     """Linearize converts the whole loop: each block must convert and evaluate, and the
     law's rates carry derivatives with respect to its state and the tip's velocity."""
-    observer = ContactForceObserver(arm_plant)
+    observer = ContactForceObserver(arm_plant, contact=TIP)
     estimator = StiffnessEstimator(
-        arm_plant, period=0.005, prior_stiffness=1e6, contact_force=0.5, informative_force=1.0
+        arm_plant,
+        contact=TIP,
+        params=StiffnessEstimatorParams(
+            period=0.005, prior_stiffness=1e6, contact_force=0.5, informative_force=1.0
+        ),
     )
     detector = SensorFaultDetector(
         arm_plant,
-        period=0.005,
-        noise_std=0.02,
-        saturation_force=111.0,
-        contact_force=0.5,
-        force_tolerance=1.1,
-        observer_gain=100.0,
+        contact=TIP,
+        params=FaultDetectorParams(
+            period=0.005,
+            noise_std=0.02,
+            saturation_force=111.0,
+            contact_force=0.5,
+            force_tolerance=1.1,
+            observer_gain=100.0,
+        ),
     )
     q = SolvePlanarInverseKinematics(arm_plant, "fingertip", POSE, [-0.45, 1.66, 0.36])
     state = InitializeAutoDiff(np.concatenate([q, [0.0, 0.0, 0.0]]))[:, 0]
@@ -240,7 +253,7 @@ def test_every_system_of_the_layer_converts_to_autodiff(arm_plant):
     law.sensor_fault_input.FixValue(context, [AutoDiffXd(0.0)])
     law.measured_force_input.FixValue(context, [AutoDiffXd(FR)])
     gradient = law.reference_offset_output.Eval(context)[0].derivatives()
-    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.concatenate([q, np.zeros(3)]))
     c = TOTAL_DAMPING - KD
     assert gradient[3:] == pytest.approx(-c / KP * kinematics.jacobian()[0], rel=1e-3)
@@ -380,7 +393,7 @@ def test_a_run_may_start_with_the_tip_exactly_at_the_push_bound(arm_plant, law):
     """A law whose max_push is exactly the tip's offset from Xd (tip - Xd, exact in floating
     point: Xd within a factor 2 of the tip's x) starts there."""
     _, context, q = law
-    tip = PlanarFrameKinematics(arm_plant, "fingertip")
+    tip = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     tip.set_state(np.concatenate([q, np.zeros(3)]))
     x = tip.pose()[0]
     desired = x - 0.01
@@ -416,3 +429,23 @@ def test_bad_arguments_name_the_argument(arm_plant, name, value, message):
 
 def test_an_undamped_pid_an_ideal_sensor_and_no_alpha_are_accepted(arm_plant):
     _law(arm_plant, alpha=0.0, pid_kd=0.0, filter_time_constant=0.0)
+
+
+def test_the_law_s_numbers_and_contact_are_structs_its_copies_keep(arm_plant):
+    """SafeAdmittanceParams keeps every number as a float (held_axes a bool), a variant is
+    dataclasses.replace of it, and the AutoDiffXd copy is built from the same structs."""
+    variant = dataclasses.replace(LAW, payload_mass=1, held_axes=1)
+    assert (variant.payload_mass, variant.held_axes) == (1.0, True)
+    assert isinstance(variant.payload_mass, float) and LAW.payload_mass == 0.0
+    system = _law(arm_plant, period=0.001)
+    converted = system.ToAutoDiffXd()
+    assert converted.params == system.params == dataclasses.replace(LAW, period=0.001)
+    assert converted.reference_offset_output.size() == TIP.num_axes == 3
+
+
+def test_the_contact_frame_checks_its_task_and_its_normal():
+    assert ContactFrame("fingertip", ["x", "y"], 1).coordinates == ("x", "y")
+    with pytest.raises(ValueError, match="normal_axis must index the coordinates"):
+        ContactFrame("fingertip", PLANAR_COORDINATES, 3)
+    with pytest.raises(ValueError, match="coordinates must be distinct names"):
+        ContactFrame("fingertip", ("x", "q"), 0)

@@ -8,6 +8,7 @@ Fmax = 10 N, Ke_max = 1e6 N/m) on a static wall of 3e6 N/m.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -19,33 +20,37 @@ from admittance.diagrams.robots.planar_arm.run import run_scenario
 from admittance.diagrams.run.safety_metrics import stiffer_than_stated
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.systems import contact_model as model
+from admittance.systems.contact_frame import ContactFrame
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES
 from admittance.systems.safe_admittance import SafeAdmittance
+from admittance.systems.safety_numbers import SafeAdmittanceParams
 from admittance.systems.wall_motion_monitor import approach_evidence
 
 KP, KD, FR, FMAX = 2500.0, 50.0, 5.0, 10.0
 POSE = [0.2, -0.25, math.pi / 2]
 MASS = 0.9217  # the fingertip's apparent mass along x at POSE (tests/test_safety_model.py)
+# The fingertip, X = (x, y, theta) in world, the wall's normal x.
+TIP = ContactFrame(frame_name="fingertip", coordinates=PLANAR_COORDINATES, normal_axis=0)
+LAW = SafeAdmittanceParams(
+    gamma=1e-5,
+    alpha=0.1,
+    stiffness=KP,
+    pid_kp=KP,
+    pid_kd=KD,
+    max_force=FMAX,
+    force_bound_gain=4.0,
+    max_push=0.01,
+    max_stiffness=1e6,
+    damping_ratio=0.25,
+    stability_margin=3.0,
+    filter_time_constant=1.0 / (2.0 * math.pi * 5000.0),
+    contact_force=0.5,
+    detection_delay=0.02,
+)
 
 
 def _law(arm_plant, estimate: float, **extra):
-    law = SafeAdmittance(
-        arm_plant,
-        gamma=1e-5,
-        alpha=0.1,
-        stiffness=KP,
-        pid_kp=KP,
-        pid_kd=KD,
-        max_force=FMAX,
-        force_bound_gain=4.0,
-        max_push=0.01,
-        max_stiffness=1e6,
-        damping_ratio=0.25,
-        stability_margin=3.0,
-        filter_time_constant=1.0 / (2.0 * math.pi * 5000.0),
-        contact_force=0.5,
-        detection_delay=0.02,
-        **extra,
-    )
+    law = SafeAdmittance(arm_plant, contact=TIP, params=dataclasses.replace(LAW, **extra))
     context = law.CreateDefaultContext()
     q = SolvePlanarInverseKinematics(arm_plant, "fingertip", POSE, [-0.45, 1.66, 0.36])
     law.estimated_state_input.FixValue(context, np.concatenate([q, np.zeros(3)]))

@@ -146,14 +146,14 @@ def test_apparent_mass_of_the_arm_at_the_paper_s_pose(arm_plant):
     """The fingertip of the built-in arm at (0.2, -0.25, pi/2): 0.92 kg along x (the
     value the stability check above uses), from M(q) and J(q) of the plant."""
     from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
-    from admittance.systems.planar_kinematics import PlanarFrameKinematics
+    from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 
     q = SolvePlanarInverseKinematics(
         arm_plant, "fingertip", [0.2, -0.25, math.pi / 2], [-0.45, 1.66, 0.36]
     )
     context = arm_plant.CreateDefaultContext()
     arm_plant.SetPositions(context, q)
-    kinematics = PlanarFrameKinematics(arm_plant, "fingertip")
+    kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.concatenate([q, np.zeros(3)]))
     mass = model.apparent_mass(arm_plant.CalcMassMatrix(context), kinematics.jacobian()[0])
     assert mass == pytest.approx(0.9217, abs=5e-4)
@@ -237,7 +237,7 @@ def test_the_payload_allowance_is_the_mass_of_a_payload_welded_at_the_fingertip(
     from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
     from admittance.diagrams.robots.planar_arm.plant import AddPlanarArm
     from admittance.diagrams.robots.planar_arm.scenario import URDF_DIR
-    from admittance.systems.planar_kinematics import PlanarFrameKinematics
+    from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 
     def apparent(payload_in_plant: float, allowance: float) -> float:
         plant, _ = AddPlanarArm(
@@ -249,7 +249,7 @@ def test_the_payload_allowance_is_the_mass_of_a_payload_welded_at_the_fingertip(
         q = SolvePlanarInverseKinematics(
             plant, "fingertip", [0.2, -0.25, math.pi / 2], [-0.45, 1.66, 0.36]
         )
-        kinematics = PlanarFrameKinematics(plant, "fingertip")
+        kinematics = PlanarFrameKinematics(plant, "fingertip", coordinates=PLANAR_COORDINATES)
         kinematics.set_state(np.concatenate([q, np.zeros(3)]))
         jacobian = kinematics.jacobian()
         return model.apparent_mass(

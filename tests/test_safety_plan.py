@@ -24,7 +24,7 @@ from admittance.diagrams.robots.planar_arm.plant import AddScenarioArm
 from admittance.diagrams.robots.planar_arm.run import run_scenario
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.systems import contact_model as model
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 
 FMAX = 10.0
 SPEED_ALLOWANCE = 0.005
@@ -56,7 +56,9 @@ def _approach_bounds(result) -> tuple[np.ndarray, np.ndarray]:
     scenario = result.scenario
     safety = result.metrics["safety"]
     plant, _ = AddScenarioArm(DiagramBuilder(), scenario.arm)
-    kinematics = PlanarFrameKinematics(plant, scenario.arm.fingertip_frame)
+    kinematics = PlanarFrameKinematics(
+        plant, scenario.arm.fingertip_frame, coordinates=PLANAR_COORDINATES
+    )
     speeds, bounds = [], []
     kp, kd = scenario.pid.kp[0], scenario.pid.kd[0]
     for q, v in zip(result.joint_positions, result.joint_velocities, strict=True):

@@ -167,26 +167,32 @@ def test_latency_lowers_the_critical_gamma_at_1_khz():
 
 def _sampled_law(plant, latency: float):
     from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
+    from admittance.systems.contact_frame import ContactFrame
+    from admittance.systems.planar_kinematics import PLANAR_COORDINATES
     from admittance.systems.safe_admittance import SafeAdmittance
+    from admittance.systems.safety_numbers import SafeAdmittanceParams
 
     law = SafeAdmittance(
         plant,
-        gamma=1e-5,
-        alpha=0.1,
-        stiffness=1200.0,
-        pid_kp=1200.0,
-        pid_kd=170.0,
-        max_force=10.0,
-        force_bound_gain=4.0,
-        max_push=0.01,
-        max_stiffness=1e6,
-        damping_ratio=0.25,
-        stability_margin=3.0,
-        filter_time_constant=FILTER,
-        contact_force=0.5,
-        detection_delay=0.02,
-        period=1e-3,
-        latency=latency,
+        contact=ContactFrame(frame_name="fingertip", coordinates=PLANAR_COORDINATES, normal_axis=0),
+        params=SafeAdmittanceParams(
+            gamma=1e-5,
+            alpha=0.1,
+            stiffness=1200.0,
+            pid_kp=1200.0,
+            pid_kd=170.0,
+            max_force=10.0,
+            force_bound_gain=4.0,
+            max_push=0.01,
+            max_stiffness=1e6,
+            damping_ratio=0.25,
+            stability_margin=3.0,
+            filter_time_constant=FILTER,
+            contact_force=0.5,
+            detection_delay=0.02,
+            period=1e-3,
+            latency=latency,
+        ),
     )
     pose = [0.15, -0.25, np.pi / 2]
     q = SolvePlanarInverseKinematics(plant, "fingertip", pose, [-0.45, 1.66, 0.36])

@@ -164,7 +164,9 @@ def test_pose_and_jacobian_against_drake_poses_and_finite_differences(
     panda_with_surface, expressed_in
 ):
     plant = panda_with_surface
-    system = SpatialKinematics(plant, frame_name=TOOL, expressed_in=expressed_in)
+    system = SpatialKinematics(
+        plant, frame_name=TOOL, coordinates=SPATIAL_COORDINATES, expressed_in=expressed_in
+    )
     rng = np.random.default_rng(7)
     q = READY + np.r_[rng.uniform(-0.4, 0.4, 7), 0.0, 0.0]
     v = rng.uniform(-1.0, 1.0, 9)
@@ -196,7 +198,7 @@ def test_pose_and_jacobian_against_drake_poses_and_finite_differences(
 
 
 def test_autodiff_kinematics_match_the_double_ones(panda_with_surface):
-    system = SpatialKinematics(panda_with_surface, frame_name=TOOL)
+    system = SpatialKinematics(panda_with_surface, frame_name=TOOL, coordinates=SPATIAL_COORDINATES)
     state = np.r_[READY, np.linspace(-0.5, 0.5, 9)]
     autodiff = system.ToAutoDiffXd()
     context = autodiff.CreateDefaultContext()
@@ -491,7 +493,8 @@ def test_the_admittance_law_runs_on_any_subset_of_six_axes(axes):
 def _pid_torque(pid, plant, q, *, converted=False):
     """The PID's torque at rest at q, commanded to where the tool is (zero error)."""
     state = np.r_[q, np.zeros(plant.num_velocities())]
-    kinematics = _kinematics(SpatialKinematics(plant, frame_name=TOOL), state)
+    tool = SpatialKinematics(plant, frame_name=TOOL, coordinates=SPATIAL_COORDINATES)
+    kinematics = _kinematics(tool, state)
     system = pid.ToAutoDiffXd() if converted else pid
     context = system.CreateDefaultContext()
     system.GetInputPort("kinematics").FixValue(context, kinematics)
@@ -553,7 +556,8 @@ def test_at_zero_error_the_torque_is_the_static_holding_torque_plus_a_null_space
     sampled = CartesianPid(plant, **arguments, period=1e-3, gravity_compensation=True)
     context = sampled.CreateDefaultContext()
     state = np.r_[q, np.zeros(plant.num_velocities())]
-    kinematics = _kinematics(SpatialKinematics(plant, frame_name=TOOL), state)
+    tool = SpatialKinematics(plant, frame_name=TOOL, coordinates=SPATIAL_COORDINATES)
+    kinematics = _kinematics(tool, state)
     sampled.kinematics_input.FixValue(context, kinematics)
     sampled.state_input.FixValue(context, state)
     sampled.commanded_position_input.FixValue(context, kinematics[:6])

@@ -212,7 +212,7 @@ def test_friction_at_the_tool_is_explained_and_a_link_torque_is_not():
     alone (the planar arm's frictionless rule), the friction's torque is unexplained, above
     the tolerance |J_xyz^T|_2 F_tol (F_tol = 0.2 Fr): a false collision on every slide. A
     torque on one joint is unexplained either way, above the tolerance."""
-    from admittance.systems.fault_detector import collision_tolerance, unexplained_torque
+    from admittance.systems.collision_check import collision_tolerance, unexplained_torque
     from admittance.systems.spatial_kinematics import SPATIAL_COORDINATES, SpatialFrameKinematics
 
     loop = BuildSpatialLoop(load_scenario("panda_surface_press"))

@@ -60,7 +60,9 @@ def test_eq13_holds_on_the_implemented_admittance_law(measured, force_rate):
     gamma, alpha, K, desired = 1e-5, 0.1, 2500.0, 5.0
     # The converted block is a plain Diagram: its ports by name, z its only state; E0 (a
     # constant, left at its default) does not enter dXr/dt.
-    block = OptimalAdmittance(gamma=gamma, alpha=alpha, stiffness=K).ToAutoDiffXd()
+    block = OptimalAdmittance(
+        gamma=gamma, alpha=alpha, stiffness=K, force_axes=(0,), num_axes=3
+    ).ToAutoDiffXd()
     context = block.CreateDefaultContext()
     block.GetInputPort("measured_force").FixValue(context, [AutoDiffXd(measured, [force_rate])])
     block.GetInputPort("desired_force").FixValue(context, [AutoDiffXd(desired, [0.0])])

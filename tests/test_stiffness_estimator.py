@@ -2,16 +2,20 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
 from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
+from admittance.systems.contact_frame import ContactFrame
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES
 from admittance.systems.stiffness_estimator import (
     GAIN_DOWN,
     LOADING_TIME,
     StiffnessEstimator,
+    StiffnessEstimatorParams,
     update_estimate,
 )
 
@@ -19,6 +23,11 @@ PRIOR = 1e6
 CONTACT = 0.5
 INFORMATIVE = 1.0
 WALL = 0.2  # Xe, m
+# The fingertip, X = (x, y, theta) in world, the wall's normal x.
+TIP = ContactFrame(frame_name="fingertip", coordinates=PLANAR_COORDINATES, normal_axis=0)
+ESTIMATOR = StiffnessEstimatorParams(
+    period=0.005, prior_stiffness=PRIOR, contact_force=CONTACT, informative_force=INFORMATIVE
+)
 
 
 def _run(samples, stiffness, log_estimate=None, wall=WALL, period=0.005):
@@ -119,12 +128,7 @@ def test_free_motion_and_untrusted_readings_drop_the_anchor():
 
 def _estimator(arm_plant, **extra):
     estimator = StiffnessEstimator(
-        arm_plant,
-        period=0.005,
-        prior_stiffness=PRIOR,
-        contact_force=CONTACT,
-        informative_force=INFORMATIVE,
-        **extra,
+        arm_plant, contact=TIP, params=dataclasses.replace(ESTIMATOR, **extra)
     )
     context = estimator.CreateDefaultContext()
     estimator.sensor_fault_input.FixValue(context, [0.0])
@@ -159,12 +163,7 @@ def test_the_system_samples_the_tip_from_the_plant(arm_plant):
 
 def test_the_frozen_estimator_has_no_state(arm_plant):
     frozen = StiffnessEstimator(
-        arm_plant,
-        period=0.005,
-        prior_stiffness=PRIOR,
-        contact_force=CONTACT,
-        informative_force=INFORMATIVE,
-        frozen_estimate=3e4,
+        arm_plant, contact=TIP, params=dataclasses.replace(ESTIMATOR, frozen_estimate=3e4)
     )
     context = frozen.CreateDefaultContext()
     assert context.num_total_states() == 0
@@ -258,12 +257,9 @@ def test_a_set_estimate_or_a_flagged_reading_leaves_no_anchor(arm_plant):
 @pytest.mark.parametrize("name", ["period", "prior_stiffness", "contact_force"])
 @pytest.mark.parametrize("value", [0.0, -1.0, math.inf])
 def test_bad_arguments_name_the_argument(arm_plant, name, value):
-    arguments = dict(
-        period=0.005, prior_stiffness=PRIOR, contact_force=CONTACT, informative_force=1.0
-    )
-    arguments[name] = value
+    params = dataclasses.replace(ESTIMATOR, informative_force=1.0, **{name: value})
     with pytest.raises(ValueError, match=f"{name} must be > 0"):
-        StiffnessEstimator(arm_plant, **arguments)
+        StiffnessEstimator(arm_plant, contact=TIP, params=params)
 
 
 def test_a_new_contact_starts_from_the_contact_start_value_and_a_floor_holds():

@@ -140,5 +140,11 @@ def test_task_space_is_checked(hand):
         CartesianPid(plant, frame_name="finger1_tip_centre", kp=1, kd=0, ki=0, coordinates=("q",))
     with pytest.raises(ValueError, match="no frame named 'nowhere'"):
         CartesianPid(
-            plant, frame_name="finger1_tip_centre", kp=1, kd=0, ki=0, expressed_in="nowhere"
+            plant,
+            frame_name="finger1_tip_centre",
+            coordinates=FINGER_COORDINATES,
+            kp=1,
+            kd=0,
+            ki=0,
+            expressed_in="nowhere",
         )

@@ -53,11 +53,8 @@ from pydrake.systems.primitives import (
 
 from admittance.diagrams.loop.point import AddSensorChain
 from admittance.diagrams.robots.description import ForcePoint, SensorChain
-from admittance.systems.wrench_sensor import (
-    WrenchInControlFrame,
-    WrenchSensor,
-    carried_mass_and_com,
-)
+from admittance.systems.wrench_in_control_frame import WrenchInControlFrame
+from admittance.systems.wrench_sensor import WrenchSensor, carried_mass_and_com
 
 
 def _panda_folder() -> Path | None:

@@ -12,9 +12,15 @@ from dataclasses import dataclass
 from pydrake.systems.framework import DiagramBuilder
 
 from admittance.systems.contact_force_observer import ContactForceObserver
-from admittance.systems.fault_detector import SensorFaultDetector
+from admittance.systems.contact_frame import ContactFrame
+from admittance.systems.fault_detector import (
+    FaultDetectorParams,
+    SensorFaultDetector,
+    detection_delay,
+)
 from admittance.systems.safe_admittance import SafeAdmittance
-from admittance.systems.stiffness_estimator import StiffnessEstimator
+from admittance.systems.safety_numbers import SafeAdmittanceParams
+from admittance.systems.stiffness_estimator import StiffnessEstimator, StiffnessEstimatorParams
 
 __all__ = [
     "AddLayerSystems",
@@ -26,7 +32,9 @@ __all__ = [
     "STIFFER_FACTOR",
     "TOLERANCE_NOISE_DEVIATIONS",
     "TOLERANCE_SHARE",
-    "law_arguments",
+    "detector_params",
+    "estimator_params",
+    "law_params",
 ]
 
 # The force observer's bandwidth, 1/s: 10 ms, two ADC samples at the default 5 ms.
@@ -47,20 +55,17 @@ STIFFER_FACTOR = 2.0
 
 @dataclass(frozen=True)
 class LayerNumbers:
-    """What one force point's layer is built from, beyond its plant and its task.
+    """What one force point's layer is built from, beyond its plant: the contact frame
+    every system of the layer reads, the law's numbers (``law_params``: F_c and Ke_max are
+    the law's), and what the monitors derive their thresholds from the same way on every
+    robot (``detector_params``, ``estimator_params``)."""
 
-    `law` holds SafeAdmittance's keyword arguments that the robot sets (Gamma, alpha, the
-    PID's gains, Fmax and its penalty, max_push, the damping ratio, the stability margin,
-    the filter's time constant, the payload, the periods, num_axes, ...); the rest the
-    layer derives here the same way on every robot."""
-
+    contact: ContactFrame
     force_reference: float
     noise: float  # sigma, the sensor's force noise, N
-    contact_force: float  # F_c, N
     reading_period: float  # s
     saturation_force: float  # N
-    max_stiffness: float  # Ke_max, N/m
-    law: dict
+    law: SafeAdmittanceParams
     frozen: bool = False  # an analysis diagram: the detector passes the reading on
     frozen_estimate: float | None = None  # an analysis diagram: the estimate, N/m
     observer_period: float = 0.0  # 0: the observer integrates continuously; > 0: its tick, s
@@ -68,22 +73,92 @@ class LayerNumbers:
     # explained torques; None: the normal alone).
     contact_axes: tuple[int, ...] | None = None
 
+    def __post_init__(self) -> None:
+        if self.law.detection_delay != detection_delay(self.reading_period):
+            raise ValueError(
+                f"law.detection_delay {self.law.detection_delay} s is not the detector's at "
+                f"the reading's period {self.reading_period} s (law_params)"
+            )
 
-def law_arguments(admittance, safety, *, kp: float, kd: float, **robot) -> dict:
-    """SafeAdmittance's keyword arguments from a scenario's `admittance` and `safety`
-    sections and the PID's gains along the normal (K of eq. 10 is Kp), with what the
-    robot adds (Fmax and its penalty, the filter, the periods, num_axes, ...)."""
-    return dict(
+    @property
+    def contact_force(self) -> float:
+        """F_c, N."""
+        return self.law.contact_force
+
+    @property
+    def max_stiffness(self) -> float:
+        """Ke_max, N/m."""
+        return self.law.max_stiffness
+
+
+def law_params(
+    admittance,
+    safety,
+    *,
+    kp: float,
+    kd: float,
+    max_force: float,
+    force_bound_gain: float,
+    filter_time_constant: float,
+    period: float,
+    latency: float,
+    contact_force: float,
+    reading_period: float,
+    held_axes: bool = False,
+) -> SafeAdmittanceParams:
+    """SafeAdmittance's numbers from a scenario's `admittance` and `safety` sections, the
+    PID's gains along the normal (K of eq. 10 is Kp), what the robot sets (Fmax and its
+    penalty, the sensor's filter, the law's period, the reading's latency, the apparent
+    mass with the other axes held) and what the layer derives: F_c, the detector's delay
+    at the reading's period, and the back-off above STIFFER_FACTOR Ke_max."""
+    return SafeAdmittanceParams(
         gamma=admittance.gamma,
         alpha=admittance.alpha,
         stiffness=kp,
         pid_kp=kp,
         pid_kd=kd,
+        max_force=max_force,
+        force_bound_gain=force_bound_gain,
         max_push=admittance.max_push,
+        max_stiffness=safety.max_stiffness,
         damping_ratio=safety.damping_ratio,
         stability_margin=safety.stability_margin,
+        filter_time_constant=filter_time_constant,
+        contact_force=contact_force,
+        detection_delay=detection_delay(reading_period),
         payload_mass=safety.payload_mass,
-        **robot,
+        period=period,
+        latency=latency,
+        backoff_stiffness=STIFFER_FACTOR * safety.max_stiffness,
+        held_axes=held_axes,
+    )
+
+
+def detector_params(numbers: LayerNumbers) -> FaultDetectorParams:
+    """The sensor monitor's numbers: the tolerance F_tol = 0.2 Fr + 6 sigma."""
+    reference, noise = numbers.force_reference, numbers.noise
+    return FaultDetectorParams(
+        period=numbers.reading_period,
+        noise_std=noise,
+        saturation_force=numbers.saturation_force,
+        contact_force=numbers.contact_force,
+        force_tolerance=TOLERANCE_SHARE * reference + TOLERANCE_NOISE_DEVIATIONS * noise,
+        observer_gain=OBSERVER_GAIN,
+        frozen=numbers.frozen,
+        contact_axes=numbers.contact_axes,
+    )
+
+
+def estimator_params(numbers: LayerNumbers) -> StiffnessEstimatorParams:
+    """The stiffness estimator's numbers: the prior Ke_max, dF_min = 0.2 Fr, the latch at
+    STIFFER_FACTOR Ke_max."""
+    return StiffnessEstimatorParams(
+        period=numbers.reading_period,
+        prior_stiffness=numbers.max_stiffness,
+        contact_force=numbers.contact_force,
+        informative_force=INFORMATIVE_SHARE * numbers.force_reference,
+        frozen_estimate=numbers.frozen_estimate,
+        latch_stiffness=STIFFER_FACTOR * numbers.max_stiffness,
     )
 
 
@@ -92,66 +167,42 @@ def AddLayerSystems(
     plant,
     model,
     pid,
-    tip: dict,
     numbers: LayerNumbers,
     *,
     name=lambda base: base,
 ):
-    """The layer's four systems at one force point (`tip`: frame_name, normal_axis and the
-    task's coordinates / expressed_in), named by `name` (base name -> name), and wired
-    among themselves, to the plant's state and to the PID's torques. `model` is the
-    law's model of the arm (the plant, or the plant without a payload it does not know).
+    """The layer's four systems at one force point (``numbers.contact``), named by `name`
+    (base name -> name), and wired among themselves, to the plant's state and to the
+    PID's torques. `model` is the law's model of the arm (the plant, or the plant without
+    a payload it does not know).
 
     Returns:
         (observer, detector, estimator, law); the reading, Fr, Xd, dXd/dt and the law's
         Xr are the caller's to wire.
     """
-    reference, noise, contact = numbers.force_reference, numbers.noise, numbers.contact_force
+    contact = numbers.contact
     observer = builder.AddSystem(
-        ContactForceObserver(plant, gain=OBSERVER_GAIN, period=numbers.observer_period, **tip)
+        ContactForceObserver(
+            plant, contact=contact, gain=OBSERVER_GAIN, period=numbers.observer_period
+        )
     )
     observer.set_name(name("contact_force_observer"))
     estimator = builder.AddSystem(
-        StiffnessEstimator(
-            plant,
-            period=numbers.reading_period,
-            prior_stiffness=numbers.max_stiffness,
-            contact_force=contact,
-            informative_force=INFORMATIVE_SHARE * reference,
-            frozen_estimate=numbers.frozen_estimate,
-            latch_stiffness=STIFFER_FACTOR * numbers.max_stiffness,
-            **tip,
-        )
+        StiffnessEstimator(plant, contact=contact, params=estimator_params(numbers))
     )
     estimator.set_name(name("stiffness_estimator"))
     detector = builder.AddSystem(
-        SensorFaultDetector(
-            plant,
-            period=numbers.reading_period,
-            noise_std=noise,
-            saturation_force=numbers.saturation_force,
-            contact_force=contact,
-            force_tolerance=TOLERANCE_SHARE * reference + TOLERANCE_NOISE_DEVIATIONS * noise,
-            observer_gain=OBSERVER_GAIN,
-            frozen=numbers.frozen,
-            contact_axes=numbers.contact_axes,
-            **tip,
-        )
+        SensorFaultDetector(plant, contact=contact, params=detector_params(numbers))
     )
     detector.set_name(name("sensor_fault_detector"))
-    law = builder.AddSystem(
-        SafeAdmittance(
-            model,
-            max_stiffness=numbers.max_stiffness,
-            contact_force=contact,
-            detection_delay=detector.detection_delay,
-            backoff_stiffness=STIFFER_FACTOR * numbers.max_stiffness,
-            **numbers.law,
-            **tip,
-        )
-    )
+    law = builder.AddSystem(SafeAdmittance(model, contact=contact, params=numbers.law))
     law.set_name(name("safe_admittance"))
+    _ConnectLayer(builder, plant, pid, observer, detector, estimator, law)
+    return observer, detector, estimator, law
 
+
+def _ConnectLayer(builder, plant, pid, observer, detector, estimator, law) -> None:
+    """The layer's systems to one another, to the plant's state and the PID's torques."""
     state = plant.get_state_output_port()
     builder.Connect(state, observer.estimated_state_input)
     builder.Connect(pid.actuation_output, observer.actuation_input)
@@ -169,4 +220,3 @@ def AddLayerSystems(
     # explains.
     builder.Connect(observer.external_torque_output, detector.external_torque_input)
     builder.Connect(detector.collision_output, law.collision_input)
-    return observer, detector, estimator, law

@@ -35,10 +35,12 @@ from admittance.systems.classical_admittance import ClassicalAdmittance
 from admittance.systems.fixed_reference import FixedReference
 from admittance.systems.flexiforce import FlexiForceSensor
 from admittance.systems.optimal_admittance import OptimalAdmittance
-from admittance.systems.planar_kinematics import PlanarKinematics, has_rotation_vector
+from admittance.systems.planar_kinematics import PlanarKinematics
 from admittance.systems.sensor_fault import SensorFault
 from admittance.systems.spatial_kinematics import SpatialKinematics
-from admittance.systems.wrench_sensor import WrenchInControlFrame, WrenchSensor
+from admittance.systems.task_kinematics import TaskKinematics, has_rotation_vector
+from admittance.systems.wrench_in_control_frame import WrenchInControlFrame
+from admittance.systems.wrench_sensor import WrenchSensor
 
 __all__ = [
     "AddCommandedPosition",
@@ -56,7 +58,7 @@ __all__ = [
 
 def AddPointKinematics(
     builder: DiagramBuilder, plant: MultibodyPlant, point: ForcePoint
-) -> PlanarKinematics | SpatialKinematics:
+) -> TaskKinematics:
     """X, dX/dt and J of the point's frame, once per evaluation, for its PID and contact:
     ``SpatialKinematics`` when its coordinates hold the rotation vector (rx, ry, rz),
     ``PlanarKinematics`` otherwise (same ``kinematics`` output layout)."""
@@ -255,7 +257,7 @@ def AddPointPid(
     builder: DiagramBuilder,
     plant: MultibodyPlant,
     point: ForcePoint,
-    kinematics: PlanarKinematics | SpatialKinematics,
+    kinematics: TaskKinematics,
     desired_velocity_output,
 ) -> CartesianPid:
     """The Cartesian PID of eq. 14-16 at the point (its Xc and its torques are wired by the

@@ -20,7 +20,7 @@ from admittance.diagrams.robots.planar_arm.loop import WALL_NORMAL_AXIS, BuildCl
 from admittance.diagrams.robots.planar_arm.safety_layer import SafetyLayer
 from admittance.diagrams.robots.planar_arm.scenario import Scenario
 from admittance.diagrams.scenario.schema import ScenarioError
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 
 __all__ = ["Equilibrium", "FindContactEquilibrium", "LinearizeAtEquilibrium", "static_scenario"]
 
@@ -92,7 +92,9 @@ def FindContactEquilibrium(scenario: Scenario, *, tolerance: float = 1e-9) -> Eq
     plant.SetVelocities(plant_context, np.zeros(plant.num_velocities()))
 
     gravity = plant.CalcGravityGeneralizedForces(plant_context)
-    kinematics = PlanarFrameKinematics(plant, frozen.arm.fingertip_frame)
+    kinematics = PlanarFrameKinematics(
+        plant, frozen.arm.fingertip_frame, coordinates=PLANAR_COORDINATES
+    )
     kinematics.set_state(plant.GetPositionsAndVelocities(plant_context))
     wall_force = np.zeros(3)
     wall_force[WALL_NORMAL_AXIS] = frozen.force_reference

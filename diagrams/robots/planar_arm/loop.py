@@ -53,7 +53,11 @@ from admittance.systems.compliant_wall import CompliantWall
 from admittance.systems.desired_trajectory import DesiredTrajectory
 from admittance.systems.flexiforce import FlexiForceSensor
 from admittance.systems.joint_torque_fault import JointTorqueFault
-from admittance.systems.planar_kinematics import PlanarFrameKinematics, PlanarKinematics
+from admittance.systems.planar_kinematics import (
+    PLANAR_COORDINATES,
+    PlanarFrameKinematics,
+    PlanarKinematics,
+)
 
 __all__ = [
     "BuildClosedLoop",
@@ -129,6 +133,7 @@ def _AddWall(
         CompliantWall(
             plant,
             frame_name=kinematics.frame_name,
+            coordinates=kinematics.coordinates,
             position=wall.position,
             stiffness=wall.stiffness,
             stiffness_steps=_stiffness_schedule(wall, faults),
@@ -277,7 +282,9 @@ def BuildClosedLoop(
 
 def _joint_speeds(loop: ClosedLoop, positions: np.ndarray, cartesian_velocity) -> np.ndarray:
     """Joint speeds that move the fingertip at `cartesian_velocity` (x, y, theta) from q."""
-    kinematics = PlanarFrameKinematics(loop.plant, loop.scenario.arm.fingertip_frame)
+    kinematics = PlanarFrameKinematics(
+        loop.plant, loop.scenario.arm.fingertip_frame, coordinates=PLANAR_COORDINATES
+    )
     kinematics.set_state(np.concatenate([positions, np.zeros(loop.plant.num_velocities())]))
     return np.linalg.lstsq(kinematics.jacobian(), np.asarray(cartesian_velocity), rcond=None)[0]
 
@@ -354,7 +361,9 @@ def _check_force_within_effort_limits(loop: ClosedLoop, plant_context, gravity) 
     effort limits, or the PID saturates and Fr is never reached.
     """
     scenario = loop.scenario
-    kinematics = PlanarFrameKinematics(loop.plant, scenario.arm.fingertip_frame)
+    kinematics = PlanarFrameKinematics(
+        loop.plant, scenario.arm.fingertip_frame, coordinates=PLANAR_COORDINATES
+    )
     kinematics.set_state(loop.plant.GetPositionsAndVelocities(plant_context))
     push = np.zeros(3)
     push[WALL_NORMAL_AXIS] = scenario.force_reference

@@ -41,7 +41,7 @@ from admittance.diagrams.run.metrics import (
 )
 from admittance.diagrams.run.safety_metrics import fault_detection, safety_columns
 from admittance.diagrams.views.formatting import number, seconds
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 
 __all__ = [
     "arm_summary",
@@ -382,7 +382,9 @@ def _collect(
         offset = np.zeros_like(desired)
 
     # Fingertip pose from the logged plant state, once, at the end.
-    kinematics = PlanarFrameKinematics(loop.plant, scenario.arm.fingertip_frame)
+    kinematics = PlanarFrameKinematics(
+        loop.plant, scenario.arm.fingertip_frame, coordinates=PLANAR_COORDINATES
+    )
     pose = np.full((sample_times.size, 3), np.nan)
     for row, state in enumerate(states):
         if np.all(np.isfinite(state)):

@@ -23,7 +23,7 @@ from admittance.diagrams.loop.layer_systems import (
     CONTACT_SHARE,
     AddLayerSystems,
     LayerNumbers,
-    law_arguments,
+    law_params,
 )
 from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
 from admittance.diagrams.robots.planar_arm.plant import ArmModel
@@ -35,9 +35,10 @@ from admittance.diagrams.run.safety_metrics import (
 )
 from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.systems.contact_force_observer import ContactForceObserver
+from admittance.systems.contact_frame import ContactFrame
 from admittance.systems.fault_detector import SensorFaultDetector
 from admittance.systems.flexiforce import FlexiForceSensor
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 from admittance.systems.safe_admittance import SafeAdmittance
 from admittance.systems.stiffness_estimator import StiffnessEstimator
 from admittance.systems.wall_motion_monitor import WallMotionMonitor
@@ -199,16 +200,18 @@ def AddSafetyLayer(
     sensor = FlexiForceSensor(
         kind=scenario.sensor.kind, filter_cutoff_hz=scenario.sensor.filter_cutoff
     )
+    reading_period = scenario.sensor.noise_period
     numbers = LayerNumbers(
+        contact=ContactFrame(
+            frame_name=frame, coordinates=PLANAR_COORDINATES, normal_axis=NORMAL_AXIS
+        ),
         force_reference=scenario.force_reference,
         noise=expected_noise(scenario),
-        contact_force=contact_force_threshold(scenario),
-        reading_period=scenario.sensor.noise_period,
+        reading_period=reading_period,
         saturation_force=sensor.saturation_force,
-        max_stiffness=safety.max_stiffness,
         frozen=analysis,
         frozen_estimate=scenario.wall.stiffness if analysis else None,
-        law=law_arguments(
+        law=law_params(
             admittance,
             safety,
             kp=pid_config.kp[NORMAL_AXIS],
@@ -218,20 +221,22 @@ def AddSafetyLayer(
             filter_time_constant=sensor.filter_time_constant if sensor.kind != "ideal" else 0.0,
             period=admittance.period,
             latency=scenario.sensor.latency,
-            num_axes=3,
+            contact_force=contact_force_threshold(scenario),
+            reading_period=reading_period,
         ),
     )
     # The law's model of the arm: the plant as built (reflected inertia included when the
     # scenario has it), without a payload the simulated arm carries (arm.payload_mass):
     # the layer knows of one only through safety.payload_mass.
     model = plant if scenario.arm.payload_mass == 0.0 else ArmModel(scenario.arm)
-    tip = dict(frame_name=frame, normal_axis=NORMAL_AXIS)
-    observer, detector, estimator, law = AddLayerSystems(builder, plant, model, pid, tip, numbers)
+    observer, detector, estimator, law = AddLayerSystems(builder, plant, model, pid, numbers)
     builder.Connect(trajectory.desired_velocity_output, law.desired_velocity_input)
     monitor = (
         None
         if analysis
-        else _AddWallMotionMonitor(builder, scenario, plant, law, detector, estimator)
+        else _AddWallMotionMonitor(
+            builder, scenario, numbers.contact, plant, law, detector, estimator
+        )
     )
     return SafetyLayer(
         law=law,
@@ -254,7 +259,7 @@ def sampled_damper_gain(plant, frame_name: str, state, kd, period: float) -> flo
     unit circle only while h lambda_i < 2. It is a necessary condition: the stiffness and
     the contact take some of that room.
     """
-    kinematics = PlanarFrameKinematics(plant, frame_name)
+    kinematics = PlanarFrameKinematics(plant, frame_name, coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.asarray(state, dtype=float))
     jacobian = np.asarray(kinematics.jacobian(), dtype=float)
     mass = plant.CalcMassMatrix(kinematics.context)
@@ -262,17 +267,18 @@ def sampled_damper_gain(plant, frame_name: str, state, kd, period: float) -> flo
     return float(period * np.max(np.linalg.eigvals(mobility @ np.diag(kd)).real))
 
 
-def _AddWallMotionMonitor(builder, scenario, plant, law, detector, estimator) -> WallMotionMonitor:
-    """The approaching wall's monitor, wired from the trusted reading and the estimate to
-    the law (docs/safety.md, section 7)."""
+def _AddWallMotionMonitor(
+    builder, scenario, contact: ContactFrame, plant, law, detector, estimator
+) -> WallMotionMonitor:
+    """The approaching wall's monitor at the layer's contact, wired from the trusted
+    reading and the estimate to the law (docs/safety.md, section 7)."""
     monitor = builder.AddSystem(
         WallMotionMonitor(
             plant,
-            frame_name=scenario.arm.fingertip_frame,
+            contact=contact,
             period=scenario.sensor.noise_period,
             noise_std=expected_noise(scenario),
             contact_force=contact_force_threshold(scenario),
-            normal_axis=NORMAL_AXIS,
         )
     )
     monitor.set_name("wall_motion_monitor")
@@ -336,7 +342,9 @@ def first_contact_approach(result, law: SafeAdmittance) -> dict:
     row = touching[0] - 1
     state = np.concatenate([result.joint_positions[row], result.joint_velocities[row]])
     numbers = law.numbers_at(state, result.scenario.force_reference)
-    kinematics = PlanarFrameKinematics(law.plant, result.scenario.arm.fingertip_frame)
+    kinematics = PlanarFrameKinematics(
+        law.plant, result.scenario.arm.fingertip_frame, coordinates=PLANAR_COORDINATES
+    )
     kinematics.set_state(state)
     speed = float(kinematics.jacobian()[NORMAL_AXIS] @ result.joint_velocities[row])
     return {
@@ -373,7 +381,9 @@ def safety_metrics(result) -> dict:
 def tip_speed(result, plant) -> np.ndarray:
     """The fingertip's speed along its path at each logged sample, m/s: |J_t(q) v|, J_t the
     translational rows of the fingertip's Jacobian."""
-    kinematics = PlanarFrameKinematics(plant, result.scenario.arm.fingertip_frame)
+    kinematics = PlanarFrameKinematics(
+        plant, result.scenario.arm.fingertip_frame, coordinates=PLANAR_COORDINATES
+    )
     speeds = np.empty(len(result.time))
     for row, (q, v) in enumerate(zip(result.joint_positions, result.joint_velocities, strict=True)):
         kinematics.set_state(np.concatenate([q, v]))

@@ -30,7 +30,7 @@ from admittance.diagrams.robots.planar_arm.scenario import Scenario
 from admittance.diagrams.robots.planar_arm.stability import simulate_near_critical, with_values
 from admittance.diagrams.scenario.schema import ScenarioError
 from admittance.systems import contact_model
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 from admittance.systems.sampled_loop import SampledContactLoop
 
 __all__ = [
@@ -98,7 +98,9 @@ def _contact_loop(scenario: Scenario) -> tuple[SampledContactLoop, dict]:
         mass, damping = numbers["apparent_mass"], numbers["injected_damping"]
     else:
         plant_context = loop.plant.GetMyContextFromRoot(equilibrium.context)
-        kinematics = PlanarFrameKinematics(loop.plant, scenario.arm.fingertip_frame)
+        kinematics = PlanarFrameKinematics(
+            loop.plant, scenario.arm.fingertip_frame, coordinates=PLANAR_COORDINATES
+        )
         kinematics.set_state(loop.plant.GetPositionsAndVelocities(plant_context))
         mass = contact_model.apparent_mass(
             loop.plant.CalcMassMatrix(plant_context), kinematics.jacobian()[WALL_NORMAL_AXIS]

@@ -46,7 +46,7 @@ from admittance.diagrams.robots.planar_arm.run import SimulationResult
 from admittance.diagrams.robots.planar_arm.scenario import Scenario
 from admittance.diagrams.robots.planar_arm.validation import validate
 from admittance.diagrams.scenario.schema import ScenarioError, scenario_keys
-from admittance.systems.planar_kinematics import PlanarFrameKinematics
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 
 __all__ = [
     "StepResponse",
@@ -294,7 +294,9 @@ def lyapunov_along_trajectory(result: SimulationResult) -> dict:
     scenario = result.scenario
     alpha = scenario.admittance.alpha
     plant, _ = AddScenarioArm(DiagramBuilder(), scenario.arm)
-    kinematics = PlanarFrameKinematics(plant, scenario.arm.fingertip_frame)
+    kinematics = PlanarFrameKinematics(
+        plant, scenario.arm.fingertip_frame, coordinates=PLANAR_COORDINATES
+    )
     tip_speed = np.empty(result.time.size)
     for row, (q, v) in enumerate(zip(result.joint_positions, result.joint_velocities, strict=True)):
         kinematics.set_state(np.concatenate([q, v]))

@@ -183,6 +183,31 @@ def _AddJointTorqueFaults(builder: DiagramBuilder, scenario: SpatialScenario, pl
     )
 
 
+def _AddTableForce(builder, plant, geometry: SpatialGeometry) -> DirectionalContactForce:
+    """The true force of the tool on the table along E's z, from the contact results."""
+    table_force = builder.AddSystem(
+        DirectionalContactForce(
+            plant.GetBodyByName(TOOL_BODY).index(),
+            plant.GetBodyByName(TABLE_BODY).index(),
+            geometry.X_WE.rotation().matrix()[:, NORMAL_AXIS],
+        )
+    )
+    table_force.set_name("table_force")
+    builder.Connect(plant.get_contact_results_output_port(), table_force.contact_results_input)
+    return table_force
+
+
+def _AddPlan(builder, scenario: SpatialScenario):
+    """The plan [Xd; dXd/dt] and its split: (plan, split), Xd on the split's output 0 and
+    dXd/dt on its output 1."""
+    plan = builder.AddSystem(TrajectorySource(spatial_plan(scenario), 1))
+    plan.set_name("plan")
+    split = builder.AddSystem(Demultiplexer([SIZE, SIZE]))
+    split.set_name("plan_split")
+    builder.Connect(plan.get_output_port(), split.get_input_port())
+    return plan, split
+
+
 def BuildSpatialLoop(scenario: SpatialScenario, *, analysis: bool = False) -> SpatialLoop:
     """Wires the arm, its tool, the table and the tool tip's force loop for `scenario`.
 
@@ -197,21 +222,8 @@ def BuildSpatialLoop(scenario: SpatialScenario, *, analysis: bool = False) -> Sp
     initial_positions = _initial_positions(scenario, plant, geometry)
     point = spatial_point(scenario, plant, initial_positions)
 
-    table_force = builder.AddSystem(
-        DirectionalContactForce(
-            plant.GetBodyByName(TOOL_BODY).index(),
-            plant.GetBodyByName(TABLE_BODY).index(),
-            geometry.X_WE.rotation().matrix()[:, NORMAL_AXIS],
-        )
-    )
-    table_force.set_name("table_force")
-    builder.Connect(plant.get_contact_results_output_port(), table_force.contact_results_input)
-
-    plan = builder.AddSystem(TrajectorySource(spatial_plan(scenario), 1))
-    plan.set_name("plan")
-    split = builder.AddSystem(Demultiplexer([SIZE, SIZE]))
-    split.set_name("plan_split")
-    builder.Connect(plan.get_output_port(), split.get_input_port())
+    table_force = _AddTableForce(builder, plant, geometry)
+    plan, split = _AddPlan(builder, scenario)
     reading = AddSensorChain(
         builder, point, table_force.contact_force_output, plant=plant, noise=not analysis
     )

@@ -33,13 +33,14 @@ from admittance.diagrams.loop.layer_systems import (
     CONTACT_SHARE,
     AddLayerSystems,
     LayerNumbers,
-    law_arguments,
+    law_params,
 )
 from admittance.diagrams.loop.point import AddCommandedPosition, AddForceLoop
 from admittance.diagrams.robots.description import ForcePoint
 from admittance.diagrams.robots.spatial_arm.plant import NORMAL_AXIS
 from admittance.diagrams.robots.spatial_arm.scenario import SpatialScenario
 from admittance.systems.contact_force_observer import ContactForceObserver
+from admittance.systems.contact_frame import ContactFrame
 from admittance.systems.fault_detector import SensorFaultDetector
 from admittance.systems.safe_admittance import SafeAdmittance
 from admittance.systems.stiffness_estimator import StiffnessEstimator
@@ -144,25 +145,24 @@ def AddSpatialForceLoop(
         )
         return controller, None
     safety, admittance = scenario.safety, scenario.admittance
-    # The tool tip's task, the normal z of E: every system of the layer is at it.
-    tip = dict(
-        frame_name=point.frame,
-        normal_axis=NORMAL_AXIS,
-        coordinates=point.coordinates,
-        expressed_in=point.expressed_in,
-    )
+    reading_period = point.sensor.period or scenario.time_step
     numbers = LayerNumbers(
+        # The tool tip's task, the normal z of E: every system of the layer is at it.
+        contact=ContactFrame(
+            frame_name=point.frame,
+            coordinates=point.coordinates,
+            normal_axis=NORMAL_AXIS,
+            expressed_in=point.expressed_in,
+        ),
         force_reference=scenario.force_reference,
         noise=_noise(scenario),
-        contact_force=spatial_contact_force_threshold(scenario),
-        reading_period=point.sensor.period or scenario.time_step,
+        reading_period=reading_period,
         saturation_force=NO_SATURATION,
-        max_stiffness=safety.max_stiffness,
         # The observer steps with the plant: the loop is sampled at time_step.
         observer_period=scenario.time_step,
         # A tool on a table loads x, y (friction) and z: the collision check explains them.
         contact_axes=(0, 1, 2),
-        law=law_arguments(
+        law=law_params(
             admittance,
             safety,
             kp=point.kp[NORMAL_AXIS],
@@ -172,12 +172,13 @@ def AddSpatialForceLoop(
             filter_time_constant=_filter_time_constant(scenario),
             period=point.law.period,
             latency=point.sensor.latency,
-            num_axes=point.num_axes,
+            contact_force=spatial_contact_force_threshold(scenario),
+            reading_period=reading_period,
             held_axes=True,
         ),
     )
     observer, detector, estimator, law = AddLayerSystems(
-        builder, plant, plant, pid, tip, numbers, name=point.system_name
+        builder, plant, plant, pid, numbers, name=point.system_name
     )
     builder.Connect(measured_force_output, detector.measured_force_input)
     builder.Connect(desired_force_output, law.desired_force_input)
