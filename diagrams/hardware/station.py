@@ -97,16 +97,39 @@ def BuildStation(config: HardwareConfig, lcm, meshcat=None) -> Station:
     plant.set_name("panda_plant")
     initial = parts.start_positions(scenario)
     plant.SetDefaultPositions(initial)
-    effort_limits = plant.GetEffortUpperLimits()
-    # The robot's gravity compensation, from the same model (arm and tool).
+    # Pumps the LCM instance once per step (its subscribers' messages reach the diagram).
+    builder.AddNamedSystem("lcm", LcmInterfaceSystem(lcm))
+    watchdog, split = _AddCommandInterface(builder, config, plant, lcm, initial, period)
+    _AddStatusPublisher(builder, plant, watchdog, split, lcm, period)
+    sensor, wrist = _AddWrenchPublisher(builder, scenario, parts, plant, initial, lcm, period)
+    loggers = {
+        "state": LogVectorOutput(plant.get_state_output_port(), builder, period),
+        "wrench": LogVectorOutput(sensor.GetOutputPort("wrench"), builder, period),
+        "hold": LogVectorOutput(watchdog.GetOutputPort("hold"), builder, period),
+    }
+    diagram = builder.Build()
+    diagram.set_name("station")
+    return Station(
+        diagram=diagram,
+        plant=plant,
+        watchdog=watchdog,
+        loggers=loggers,
+        initial_positions=initial,
+        parts=parts,
+        wrist_sensor=wrist,
+        seed=int(scenario.seed),
+    )
+
+
+def _AddCommandInterface(builder, config, plant, lcm, initial, period):
+    """The robot's command interface: the command channel through Drake's receiver into
+    the watchdog, which drives the arm with the robot's gravity compensation; returns the
+    watchdog and the state's split into joint positions and velocities."""
     gravity = builder.AddNamedSystem(
         "gravity_compensation",
         InverseDynamics(plant, InverseDynamics.InverseDynamicsMode.kGravityCompensation),
     )
     builder.Connect(plant.get_state_output_port(), gravity.get_input_port_estimated_state())
-
-    # Pumps the LCM instance once per step (its subscribers' messages reach the diagram).
-    builder.AddNamedSystem("lcm", LcmInterfaceSystem(lcm))
     subscriber = builder.AddNamedSystem(
         "command_subscriber",
         LcmSubscriberSystem.Make(
@@ -119,7 +142,6 @@ def BuildStation(config: HardwareConfig, lcm, meshcat=None) -> Station:
     builder.Connect(plant.get_state_output_port(), split.get_input_port())
     builder.Connect(subscriber.get_output_port(), receiver.get_message_input_port())
     builder.Connect(split.get_output_port(0), receiver.get_position_measured_input_port())
-
     watchdog = builder.AddNamedSystem(
         "command_watchdog",
         CommandWatchdog(
@@ -127,7 +149,7 @@ def BuildStation(config: HardwareConfig, lcm, meshcat=None) -> Station:
             period=period,
             command_timeout=config.command_timeout,
             **joint_gains(plant, initial, config, period),
-            effort_limits=effort_limits,
+            effort_limits=plant.GetEffortUpperLimits(),
             initial_position=initial,
         ),
     )
@@ -144,7 +166,11 @@ def BuildStation(config: HardwareConfig, lcm, meshcat=None) -> Station:
         watchdog.GetInputPort("gravity_compensation"),
     )
     builder.Connect(watchdog.GetOutputPort("actuation"), plant.get_actuation_input_port())
+    return watchdog, split
 
+
+def _AddStatusPublisher(builder, plant, watchdog, split, lcm, period) -> None:
+    """Drake's status sender on the arm's joints and torques, published every period."""
     status = builder.AddNamedSystem("status_sender", PandaStatusSender(7))
     builder.Connect(split.get_output_port(0), status.GetInputPort("position_measured"))
     builder.Connect(split.get_output_port(1), status.GetInputPort("velocity_measured"))
@@ -158,6 +184,11 @@ def BuildStation(config: HardwareConfig, lcm, meshcat=None) -> Station:
     )
     builder.Connect(status.get_output_port(), status_publisher.get_input_port())
 
+
+def _AddWrenchPublisher(builder, scenario, parts, plant, initial, lcm, period):
+    """The wrist wrench published every period: the scenario's sensor (bias, noise,
+    low-pass) or the ideal one (the tool's contact wrench); returns (the ideal sensor,
+    which the log reads, the scenario's wrench sensor or None)."""
     sensor = builder.AddNamedSystem(
         "wrist_sensor", WristWrenchSensor(plant, plant.GetBodyByName(parts.tool_body))
     )
@@ -177,24 +208,7 @@ def BuildStation(config: HardwareConfig, lcm, meshcat=None) -> Station:
         builder.Connect(
             sensor.GetOutputPort("lcmt_force_torque"), wrench_publisher.get_input_port()
         )
-
-    loggers = {
-        "state": LogVectorOutput(plant.get_state_output_port(), builder, period),
-        "wrench": LogVectorOutput(sensor.GetOutputPort("wrench"), builder, period),
-        "hold": LogVectorOutput(watchdog.GetOutputPort("hold"), builder, period),
-    }
-    diagram = builder.Build()
-    diagram.set_name("station")
-    return Station(
-        diagram=diagram,
-        plant=plant,
-        watchdog=watchdog,
-        loggers=loggers,
-        initial_positions=initial,
-        parts=parts,
-        wrist_sensor=wrist,
-        seed=int(scenario.seed),
-    )
+    return sensor, wrist
 
 
 def _AddWristSensor(builder, scenario, point, plant) -> WrenchSensor:

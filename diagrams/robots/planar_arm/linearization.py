@@ -123,6 +123,16 @@ def FindContactEquilibrium(scenario: Scenario, *, tolerance: float = 1e-9) -> Eq
         # The wall pushes the tip along -x with Fr: tau_ext = J^T (-Fr, 0, 0).
         admittance.set_equilibrium(context, offset, -kinematics.jacobian().T @ wall_force)
 
+    residual = _polish(diagram, context, tolerance)
+    return Equilibrium(loop=loop, context=context, residual=residual)
+
+
+def _polish(diagram, context, tolerance: float) -> float:
+    """Newton steps on dx/dt = 0 from the constructed state; returns the residual.
+
+    Raises:
+        ScenarioError: the steps do not converge.
+    """
     for _ in range(10):
         residual = _residual(diagram, context)
         if residual < tolerance:
@@ -135,7 +145,7 @@ def FindContactEquilibrium(scenario: Scenario, *, tolerance: float = 1e-9) -> Eq
     residual = _residual(diagram, context)
     if not np.isfinite(residual) or residual > 1e-6:
         raise ScenarioError(f"scenario: no contact equilibrium found (residual {residual:.3g})")
-    return Equilibrium(loop=loop, context=context, residual=residual)
+    return residual
 
 
 def _residual(diagram, context) -> float:
