@@ -10,7 +10,7 @@ r = -R^T f for the rows R of those axes. So
 is zero for any contact force and any sensor fault (a fault changes the reading, never
 r), and a torque on a link shows in it. The monitor (systems/fault_detector.py) takes
 |r_perp| beyond the torque of a force error at its base tolerance F_tol as evidence of a
-collision (docs/safety.md, "The collision reflex", derives it).
+collision (docs/evidence/safety-collision.md, "The collision reflex", derives it).
 """
 
 from __future__ import annotations

@@ -23,12 +23,13 @@ M' = C + C^T), C v the plant's bias term and dM/dt a central difference of M(q) 
 q' = N(q) v over a step of 1e-5 rad at the fastest joint (truncation and rounding both
 below 1e-9 of the term), so for each evaluation two more mass matrices and a bias term.
 Left out (``coriolis=False``, the observer as it was), the observer reads the term as a
-contact: r settles at -C^T v, quadratic in the joint speeds (docs/safety.md, "The
+contact: r settles at -C^T v, quadratic in the joint speeds (docs/evidence/safety.md, "The
 observer's full momentum dynamics").
 
 The fault detector compares the sensor's reading with F_hat
 (systems/fault_detector.py), and r itself with what a force along the normal can explain:
-r off the direction J_n^T is a collision on a link (docs/safety.md, "The collision
+r off the direction J_n^T is a collision on a link (docs/evidence/safety-collision.md, "The
+collision
 reflex"); the output `external_torque` is r.
 """
 
@@ -109,7 +110,7 @@ class _ContactForceObserver:
             contact: the contact frame, its task vector X and the normal's index in X.
             gain: K_o, the observer's bandwidth, 1/s (> 0).
             coriolis: integrate C(q, v)^T v (False: the observer without it, for the
-                comparison of docs/safety.md).
+                comparison of docs/evidence/safety.md).
             period: 0 integrates p_I continuously; > 0 steps it by Euler once per
                 period, s (a sampled loop's tick: K_o period must stay below 2).
         """

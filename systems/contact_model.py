@@ -7,7 +7,7 @@ held by the Cartesian PID's spring Kp and damper Kd, pressing a wall of stiffnes
     m x'' + Kd x' + (Kp + Ke) x = Kp Xc            (x the penetration, F = Ke x)
 
 The PID's integral is slow (Kp / Ki >= 10 s here) and is left out. Three results of this
-model set the safety layer's numbers (docs/safety.md derives and measures each):
+model set the safety layer's numbers (docs/evidence/safety.md derives and measures each):
 
 **Impact (first contact).** A tip that approaches at speed v, with its reference moving at
 v, leads the reference by Kd v / Kp (the D term acts on the tip's own speed: the PID's

@@ -19,7 +19,8 @@ Four kinds of fault, each one flag of ``fault_flags``:
   force through the lag 1 / K_o (dF_hat/dt = K_o (F - F_hat)), so the true force is
   F_hat + F_hat' / K_o; the allowance is that lag seen in the observer's own rate, plus the
   reading's rate, which covers the one-sample difference quotient's lag behind F_hat' at
-  an impact (docs/safety.md section 3 derives it). A tip following a moving wall at a
+  an impact (docs/evidence/safety-sensor-faults.md section 3 derives it). A tip following a moving
+  wall at a
   constant force moves without changing F_hat, so the wall's speed does not widen it.
 
 A fifth flag, ``collision`` (after N_c = 3 samples, latched to the end of the run), is not
@@ -32,7 +33,8 @@ no fingertip force along the normal can produce. Such a force gives r = -F j, j 
 is zero for any contact force and any sensor fault (a fault changes the reading, never r),
 and a torque on a link shows in it. Evidence: |r_perp| > |j| F_tol, the norm of the torque
 that a fingertip force error at the plausibility check's base tolerance F_tol makes
-(docs/safety.md, "The collision reflex", derives it). While there is evidence of a
+(docs/evidence/safety-collision.md, "The collision reflex", derives it). While there is evidence of
+a
 collision, or once one is flagged, the plausibility check takes no evidence (F_hat then
 carries the collision's torque, not the contact force), and once one is flagged the stuck
 check's contact is the reading's alone. ``sensor_fault`` ignores it; the
@@ -142,7 +144,7 @@ def plausibility_allowance(
 ) -> float:
     """The plausibility check's allowance beyond F_tol, N: (|dr| + |dF_hat|) / (T K_o), the
     observer's lag F_hat' / K_o seen in its own change over the last sample, plus the
-    reading's (docs/safety.md section 3)."""
+    reading's (docs/evidence/safety-sensor-faults.md section 3)."""
     return (abs(reading_change) + abs(observed_change)) / (period * observer_gain)
 
 

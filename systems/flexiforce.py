@@ -5,7 +5,7 @@ the paper's 0-100 N range) read through "an operational amplifier and analog fil
 recommended by the manufacturer". This module models that chain as one Drake system,
 :class:`FlexiForceSensor` (``FlexiForceSensor_[T]`` for T in float, AutoDiffXd and symbolic
 Expression), plus an ``ideal`` pass-through kind for comparisons. See
-``docs/paper-notes.md`` section 7 for the datasheet facts.
+``docs/evidence/paper-notes.md`` section 7 for the datasheet facts.
 
 The circuit's constants (the datasheet's and the derived ones, the defaults of the
 constructor's arguments) and their ranges are systems/flexiforce_circuit.py's.

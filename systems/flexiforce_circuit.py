@@ -2,7 +2,7 @@
 
 The sensor (systems/flexiforce.py) is the A201 read through Tekscan's recommended
 inverting op-amp circuit and an analog low-pass (paper Section VI-B; the datasheet facts
-are in docs/paper-notes.md, section 7). Each constant below is an argument of the
+are in docs/evidence/paper-notes.md, section 7). Each constant below is an argument of the
 sensor, with this value by default, checked by ``circuit_constants``.
 
 Default constants (all are constructor arguments):

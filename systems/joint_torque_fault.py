@@ -4,7 +4,8 @@ During [start, end) the torque `value` N m acts on joint `joint`, summed with th
 generalized force that reaches the plant's applied-generalized-force input (the wall's,
 -F J_x^T). It stands in for a collision anywhere on the arm but the fingertip: the
 contact sensor does not see it, the arm's own motion does (the momentum observer's
-residual, systems/contact_force_observer.py; docs/safety.md, "The collision reflex").
+residual, systems/contact_force_observer.py; docs/evidence/safety-collision.md, "The collision
+reflex").
 """
 
 from __future__ import annotations

@@ -3,12 +3,13 @@
 The paper minimises I = 1/2 |E + alpha dE/dt|^2 over the reference offset Xr by a gradient
 flow (eq. 8). With E = Fr - F and the impedance model of eq. 5, dE/dXr = -K, so
 
-    dXr/dt = + Gamma K (E + alpha dE/dt)                          (eq. 10', docs/paper-notes.md §2)
+    dXr/dt = + Gamma K (E + alpha dE/dt)                          (eq. 10',
+    docs/evidence/paper-notes.md §2)
 
 The printed eq. 9-10 carry the opposite sign, which drives the arm away from the wall; this
 module implements the corrected sign: while the measured force is below the desired one
 (E > 0) the reference moves along +axis (into the wall), and while it is above (E < 0) the
-reference recedes. Integrating once (docs/paper-notes.md §3) removes the derivative of the
+reference recedes. Integrating once (docs/evidence/paper-notes.md §3) removes the derivative of the
 noisy force:
 
     Xr(t) = Gamma K [ z(t) + alpha (E(t) - E(0)) ],   dz/dt = E.

@@ -1,4 +1,4 @@
-"""The paper's admittance law with the safety layer's limits (docs/safety.md).
+"""The paper's admittance law with the safety layer's limits (docs/evidence/safety.md).
 
 On the wall-normal axis, with the trusted force F (systems/fault_detector.py), the
 stiffness estimate k_hat (systems/stiffness_estimator.py) and the reduced contact model
@@ -36,7 +36,7 @@ contact mode the damping ratio zeta_target at Ke_max (contact_model.injected_dam
 first contact with less than 0.19 always bounces. At an equilibrium x' = 0: the term adds
 damping and nothing else.
 
-**The plan's velocity.** The PID's D term is Kd (dXd/dt - x') (docs/paper-notes.md,
+**The plan's velocity.** The PID's D term is Kd (dXd/dt - x') (docs/evidence/paper-notes.md,
 section 10): a plan moving along the normal pushes Kd dXd/dt through it whatever Xr is.
 Xr carries -(Kd / Kp) dXd/dt, which the PID's spring turns into -Kd dXd/dt: the PID then
 acts as Kp (Xd + y + P - X) - (Kd + c) x' along the normal, the reduced model's
@@ -82,7 +82,8 @@ Ke_max peaks at Fmax: a retreat that strikes something as stiff stays under Fmax
 PID keeps the arm at that command against the collision's torque; the damper c x' stays.
 Without a value on the ``collision`` input there is no reflex.
 
-**Beyond the stated bounds** (docs/safety.md, section 7). Above ``backoff_stiffness`` (a
+**Beyond the stated bounds** (docs/evidence/safety-beyond-bounds.md, section 7). Above
+``backoff_stiffness`` (a
 wall reported stiffer than stated) the command moves toward the wall at most at
 v_f = v_max (Fmax - Fr) / Fmax, in contact and in free motion. In contact, a wall that
 approaches faster than v_f (``wall_approach_speed``, systems/wall_motion_monitor.py) moves
@@ -101,7 +102,7 @@ the tick the PID reads it, as one controller computes both in one tick. Gamma* i
 sampled loop's with the reading ``latency`` L late (systems/sampled_loop.py: the
 spectral radius of the reduced loop over one tick, the delay as states), in place of the
 continuous Routh-Hurwitz bound, which at h = 1 ms is 17 to 30 times too high on a 1e6 N/m
-wall (L from 0 to 0.5 ms; docs/safety.md, section 8).
+wall (L from 0 to 0.5 ms; docs/evidence/safety-sampled.md, section 8).
 
 For AutoDiffXd (Linearize), the schedule's inputs that are not the loop's (m, c, v_max,
 v_adv, the branch of each min) are taken at their values: at an equilibrium they are
@@ -427,7 +428,8 @@ class _SafeAdmittance:
         """dy/dt with the command moving back at v_hat, the wall's approach speed
         (systems/wall_motion_monitor.py), on top of the law's own rate, when v_hat is
         above the speed the layer guarantees, v_f = v_max (Fmax - Fr) / Fmax
-        (docs/safety.md, section 7): the law's integral then need not lag the wall."""
+        (docs/evidence/safety-beyond-bounds.md, section 7): the law's integral then need not lag
+        the wall."""
         if not self.wall_approach_speed_input.HasValue(context):
             return rate
         speed = _value(self.wall_approach_speed_input.Eval(context)[0])

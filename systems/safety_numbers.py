@@ -2,7 +2,7 @@
 numbers (``SafeAdmittanceParams``), those it derives from them at a state of the arm
 (``derived_numbers``: the apparent mass of a task axis, the injected damper, the speeds
 toward the wall and the critical gain), and the speeds toward a wall reported stiffer
-than stated (docs/safety.md).
+than stated (docs/evidence/safety.md).
 
 **The apparent mass along the normal.** A force f along the normal row j of the task
 Jacobian J meets one of two masses (contact_model.apparent_mass for the first):
@@ -136,7 +136,8 @@ class SafetyNumbers(dict):
 
 def backed_off(approach_speed, advance_speed, max_force, force_reference):
     """The command's speeds toward the wall once it is reported stiffer than stated
-    (docs/safety.md, section 7): both at most v_f = v_max (Fmax - Fr) / Fmax, the speed
+    (docs/evidence/safety-beyond-bounds.md, section 7): both at most v_f = v_max (Fmax - Fr) /
+    Fmax, the speed
     whose impact, on top of Fr, peaks at Fmax on a wall of the estimate's stiffness."""
     follow = approach_speed * max(max_force - force_reference, 0.0) / max_force
     return min(approach_speed, follow), min(advance_speed, follow)
@@ -198,7 +199,8 @@ def derived_numbers(
         held_axes=params.held_axes,
     )
     kp, kd, max_force = params.pid_kp, params.pid_kd, params.max_force
-    # Beyond the stated bound (docs/safety.md, section 7): on a wall the estimate shows
+    # Beyond the stated bound (docs/evidence/safety-beyond-bounds.md, section 7): on a wall the
+    # estimate shows
     # stiffer than Ke_max, the approach speed is the estimate's (any re-contact peaks under
     # Fmax there); the damper stays Ke_max's.
     stiffest = max(params.max_stiffness, stiffness_estimate)

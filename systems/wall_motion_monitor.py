@@ -26,7 +26,8 @@ abs(x') (1 - Ke / k_hat): a retreat at v_hat shrinks by that factor each sample,
 hold ends once v_hat is 0 or the law no longer acts on it (v_hat <= v_f).
 
 The law (systems/safe_admittance.py) compares v_hat with the wall speed it can guarantee,
-v_f = v_max (Fmax - Fr) / Fmax (docs/safety.md, section 7), and above it moves the command
+v_f = v_max (Fmax - Fr) / Fmax (docs/evidence/safety-beyond-bounds.md, section 7), and above it
+moves the command
 back at v_hat on top of its own rate.
 """
 

@@ -165,7 +165,7 @@ class _WrenchSensor:
     stays in the compensated reading (and its moment -c x m a, and the rotational
     inertia's). A slide at 2 cm/s reached in 0.2 s accelerates at 0.1 m/s^2: 0.05 N
     for a 0.5 kg tool, 0.5 % of a 10 N press; at constant speed it is zero
-    (docs/wrist-sensor.md). ``tool_mass`` and ``tool_com`` are those of everything
+    (docs/evidence/wrist-sensor.md). ``tool_mass`` and ``tool_com`` are those of everything
     the weld carries (None: taken from the plant, a perfectly calibrated tool).
 
     ``noise`` is standard normal (a RandomSource of kGaussian, sampled at the

@@ -1,4 +1,4 @@
-"""Mutation testing of the laws with cosmic-ray, one module at a time (docs/testing.md).
+"""Mutation testing of the laws with cosmic-ray, one module at a time (docs/evidence/testing.md).
 
     python tests/mutation.py optimal_admittance      # mutate, test, report (resumable)
     python tests/mutation.py --report all            # the scores of the sessions run so far

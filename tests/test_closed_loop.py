@@ -1,6 +1,7 @@
 """Closed-loop runs of the paper's scenarios: force tracking, signs, bounds.
 
-Tolerances are the acceptance criteria of the project (docs/results.md, "What the runs show"): a
+Tolerances are the acceptance criteria of the project (docs/evidence/results.md, "What the runs
+show"): a
 mean force error under 1 % of Fr at steady state, a return to within 5 % of Fr in under 1 s
 after the stiffness doubles, no force above what the doubled stiffness gives at its instant,
 no contact loss and the force lag predicted for the moving wall, and a PID-alone baseline
@@ -61,7 +62,8 @@ def test_force_tracking_through_a_stiffness_step(run, request):
     assert step["mean_abs_force_error_before"] < 0.05
     assert metrics["steady_state_force_error"] < 0.05
     # Back within 5 % of Fr in under 1 s after Ke jumps (measured 0.12 s; the quasi-static
-    # time constant alpha + 1 / (Gamma K K_eff) is 0.11 s on 1e5 N/m, docs/paper-notes.md §4).
+    # time constant alpha + 1 / (Gamma K K_eff) is 0.11 s on 1e5 N/m, docs/evidence/paper-notes.md
+    # §4).
     assert step["settling_time"] is not None and step["settling_time"] < 1.0
     # No excessive force after first contact. A stiffness jump at a fixed penetration
     # multiplies the force by the stiffness ratio (2 in both runs) at that instant, for any
@@ -100,7 +102,7 @@ def test_the_tip_follows_eq_19_along_the_wall(stiffness_step):
 
 
 def test_moving_wall_keeps_contact_and_the_predicted_force_lag(moving_wall):
-    """A wall receding at v leaves the force lagging by v / (Gamma K) (docs/paper-notes.md
+    """A wall receding at v leaves the force lagging by v / (Gamma K) (docs/evidence/paper-notes.md
     §4: Xr must move at v, so dz/dt = v / (Gamma K) = E): 0.005 / (1e-5 * 1200) = 0.42 N."""
     result = moving_wall
     metrics = result.metrics

@@ -1,4 +1,5 @@
-"""The collision reflex (docs/safety.md, "The collision reflex"): a torque on a link that the
+"""The collision reflex (docs/evidence/safety-collision.md, "The collision reflex"): a torque on a
+link that the
 contact sensor does not explain is a collision, not a sensor fault, and the arm stops.
 
 * the classification by hand: at the pose (0.2, -0.25, pi/2) a residual along

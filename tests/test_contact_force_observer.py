@@ -216,7 +216,7 @@ def test_on_the_panda_the_observer_reads_the_force_along_the_control_frame_z():
     task (x, y, z, rx, ry, rz of the tool tip in the control frame, the normal z): r set to
     J^T (-F e_z) reads F, and dp_I/dt carries dT/dq (AutoDiffXd of the kinetic energy). The
     observer without the term would settle at r = dT/dq: its force is printed (-s) and
-    kept below the detector's allowance (docs/safety.md)."""
+    kept below the detector's allowance (docs/evidence/safety.md)."""
     loop = BuildSpatialLoop(load_scenario("panda_surface_press"))
     plant = loop.plant
     nv = plant.num_velocities()

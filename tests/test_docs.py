@@ -4,7 +4,7 @@
   notebooks' markdown cells points to a file of the repository, and an anchor
   (``page.md#heading``) to a heading of that page (GitHub's heading slugs).
 * Every repository path a page writes as code (`systems/flexiforce.py`) exists.
-* Every citation of docs/paper-notes.md by section number names a section it has.
+* Every citation of docs/evidence/paper-notes.md by section number names a section it has.
 * No tracked file names a file outside the repository (the shared folder of the team that
   wrote it, its design or style notes) or a tracker's issue number.
 * The README is a landing page: under 210 lines.
@@ -23,7 +23,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 README = ROOT / "README.md"
-PAPER_NOTES = ROOT / "docs" / "paper-notes.md"
+PAPER_NOTES = ROOT / "docs" / "evidence" / "paper-notes.md"
 # The README is a landing page of about 150-200 lines; the findings live under docs/.
 README_MAX_LINES = 210
 
@@ -34,7 +34,7 @@ _LINK = re.compile(r"!?\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")
 _HEADING = re.compile(r"^#{1,6}\s+(.+?)\s*#*\s*$", re.M)
 # A path into the repository written as code: a top-level folder, then a file or folder.
 _REPO_PATH = re.compile(r"^(?:systems|diagrams|urdf|docs|notebooks|tests|\.ci)/[\w./-]*")
-# Citations "docs/paper-notes.md, section 4", "paper-notes.md §2", "sections 4 and 5".
+# Citations "docs/evidence/paper-notes.md, section 4", "paper-notes.md §2", "sections 4 and 5".
 _NOTES_CITATION = re.compile(
     r"paper-notes\.md\)?[\s,)\]`]*(?:§\s*|sections?\s+)(\d+(?:\s*(?:,|and|to)\s*\d+)*)"
 )
@@ -48,7 +48,10 @@ _OUTSIDE = {
 
 
 def _markdown_pages() -> list[Path]:
-    return [README, *sorted((ROOT / "docs").glob("*.md")), ROOT / "notebooks" / "README.md"]
+    """Every page: the README, every page under docs/ (guide, reference, evidence), the
+    notebooks' and the URDF's READMEs."""
+    pages = sorted((ROOT / "docs").rglob("*.md"))
+    return [README, *pages, ROOT / "notebooks" / "README.md", ROOT / "urdf" / "README.md"]
 
 
 def _notebooks() -> list[Path]:
@@ -190,7 +193,7 @@ def test_paper_notes_sections_cited_exist():
         for numbers in _NOTES_CITATION.findall(text):
             for number in map(int, re.findall(r"\d+", numbers)):
                 cited.setdefault(number, str(path.relative_to(ROOT)))
-    assert cited, "no file cites docs/paper-notes.md by section: the pattern is broken"
+    assert cited, "no file cites docs/evidence/paper-notes.md by section: the pattern is broken"
     assert {n: where for n, where in cited.items() if n not in numbered} == {}
 
 

@@ -166,7 +166,8 @@ def _drift_factor(seconds_under_load):
 
 def test_the_datasheets_bounds_raise_no_fault_and_keep_the_force_in_its_band():
     """safe_contact on its wall held still, 5 s (first contact at 1.39 s), h = 0.045 and
-    d = 0.05 (docs/safety.md section 3). The law regulates the reading to Fr, so the true
+    d = 0.05 (docs/evidence/safety-sensor-faults.md section 3). The law regulates the reading to
+    Fr, so the true
     force is Fr / (D (1 +- h/2)): over 4-5 s (3.1-3.6 s under load, D = 1.031-1.033) its
     mean lies in [Fr / (1.0331 x 1.0225), Fr / (1.0306 x 0.9775)] = [4.73, 4.96] N (measured
     4.82 N); after the contact's transient it stays within [4.70, 5.12] N (Fr / (1 - h/2)

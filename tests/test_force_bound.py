@@ -5,7 +5,7 @@ Fmax = 2 Fr = 10 N. The wall approaches the arm (negative wall.velocity) for 0.2
 2.5 s; the obstacle is hit at the plan's speed (trajectory.frequency). The arm's own limit
 is the PID's damping: a wall pushing the tip at v costs Kd v of force that no reference
 offset removes (systems/optimal_admittance.py), so the grid stops at the speeds where
-Kd v stays near Fmax - Fr; docs/force-bound.md gives the figures beyond it.
+Kd v stays near Fmax - Fr; docs/evidence/force-bound.md gives the figures beyond it.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The grasp closed loop: Drake's planar gripper holds its brick through Drake's contact engine.
 
-Short runs in the default suite; the full comparison table (docs/grasp.md) is slow.
+Short runs in the default suite; the full comparison table (docs/evidence/grasp.md) is slow.
 """
 
 from __future__ import annotations
@@ -171,7 +171,8 @@ def test_metrics_report_the_brick_in_every_direction_and_each_slip_rate(held):
     assert {"brick_drop", "brick_rise", "brick_final_displacement", "max_slip"} <= set(metrics)
 
 
-# The creep of a held brick (docs/grasp.md): Drake's discrete (SAP) friction is regularized,
+# The creep of a held brick (docs/evidence/grasp.md): Drake's discrete (SAP) friction is
+# regularized,
 # f_t = mu N v / sqrt(v^2 + eps^2), so a tip carrying a tangential load f_t slips at
 #   v = eps r / sqrt(1 - r^2),  r = f_t / (mu N),  eps = max(v_s, mu sigma w dt N),
 # with SAP's sigma = 1e-3 and w = |W|_F / 3 of the contact's Delassus block W. Its numbers
@@ -369,7 +370,7 @@ def test_grasp_disturbance_keeps_contact_and_recovers():
 
 @pytest.mark.slow
 def test_the_comparison_table():
-    """docs/grasp.md's table: the full runs over +-2 mm and stiffness x0.1 to x10."""
+    """docs/evidence/grasp.md's table: the full runs over +-2 mm and stiffness x0.1 to x10."""
     from admittance.diagrams.robots.planar_gripper.compare import compare_grasps
 
     rows = compare_grasps("grasp_hold")

@@ -47,10 +47,10 @@ from admittance.diagrams.scenario.schema import ScenarioError
 FORCE_TOLERANCE = 1e-4
 
 
-# The loaded plan every derivation below was made for (docs/stability.md): finger3 presses
+# The loaded plan every derivation below was made for (docs/evidence/stability.md): finger3 presses
 # with 1 N against the brick's 0.27 N weight, so the side tips' regularized friction carries
 # 0.36 N each and the brick creeps; Gamma is the paper's 1e-5. grasp_hold itself now holds
-# finger3 at the weight with Gamma = 5e-6 (docs/grasp.md): test_grasp_hold_as_built_...
+# finger3 at the weight with Gamma = 5e-6 (docs/evidence/grasp.md): test_grasp_hold_as_built_...
 LOADED_PLAN = ["force_reference=[2.0, 2.0, 1.0]", "admittance.gamma=1e-5"]
 
 

@@ -1,7 +1,7 @@
 """The hardware controller's gains against the sampled loop whose command comes late
 (diagrams/robots/spatial_arm/sampled_gains.py): the damper's limit by hand, the Panda press's
 lowest rate by hand from its wrist, the start's refusal in one line, and the press on the
-station beyond the bound (docs/hardware.md)."""
+station beyond the bound (docs/evidence/hardware.md)."""
 
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ pytestmark = pytest.mark.skipif(
 
 # panda_surface_press: the PID's damping about the tool axis (pid.kd's rz), N m s/rad, and
 # the last wrist joint's inertia at the start posture (the URDF without motor inertia;
-# docs/hardware.md), kg m^2. The joint turns about the tool's axis, through the tip.
+# docs/evidence/hardware.md), kg m^2. The joint turns about the tool's axis, through the tip.
 KD_RZ, M_77 = 2.0, 0.0067
 
 
@@ -49,7 +49,7 @@ def test_the_press_needs_the_rate_its_wrist_damping_asks_for():
     """The wrist's last joint alone: lambda = kd_rz / M_77 = 299 /s, and with the command
     one period late h lambda < 1: above 299 Hz. The other joints share the rotation about
     the tool and add to the mode's mobility, so the check's bound lies above that, within
-    20 %. The spatial station bounced at 340 Hz and settled at 350 Hz (docs/hardware.md):
+    20 %. The spatial station bounced at 340 Hz and settled at 350 Hz (docs/evidence/hardware.md):
     the bound lies between. At 1000, 500 and 400 Hz the check accepts the press, at 333 and
     250 Hz it refuses it, naming the rotation about the tool."""
     by_hand = KD_RZ / M_77

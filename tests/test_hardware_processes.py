@@ -2,7 +2,7 @@
 namespace that the test makes itself (``unshare -rn``: loopback up, multicast routed to it),
 so that no packet leaves the machine; skipped where namespaces are not allowed.
 
-The timing tests assert no absolute time: the figures go to docs/hardware.md.
+The timing tests assert no absolute time: the figures go to docs/evidence/hardware.md.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """The arm with its motors' viscous friction (arm.motor_damping) and the contact-force
-observer that does not model it (docs/safety.md, section 3).
+observer that does not model it (docs/evidence/safety-sensor-faults.md, section 3).
 
 The observer takes the commanded torque for the applied one, so the joints' damping torque
 -B q' reads as an external torque, and F_hat is off by (J^-T B J^-1 X')_x.
@@ -23,7 +23,8 @@ from admittance.systems.contact_force_observer import ContactForceObserver
 from admittance.systems.contact_frame import ContactFrame
 from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
 
-# The stated motor-side viscous friction, N m s/rad (docs/safety.md, section 3).
+# The stated motor-side viscous friction, N m s/rad (docs/evidence/safety-sensor-faults.md, section
+# 3).
 MOTOR_DAMPING = 2.4e-6
 RATIOS = (288.0, 192.0, 48.0)  # the URDF's gear ratios (urdf/README.md)
 

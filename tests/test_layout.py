@@ -21,7 +21,7 @@ APPLICATION = "admittance.diagrams.app"
 # The folders of the library, and their import names.
 LIBRARY = {"systems": "admittance.systems", "diagrams": "admittance.diagrams"}
 # A module longer than this holds more than one topic.
-MAX_MODULE_LINES = 600
+MAX_MODULE_LINES = 500
 # The concept packages of admittance.diagrams.
 CONCEPTS = ("scenario", "robots", "loop", "run", "analysis", "views", "hardware", "app")
 

@@ -34,7 +34,8 @@ def test_five_minutes_of_noisy_contact_do_not_drift():
             "sensor.kind=flexiforce",
             "sensor.noise_std=0.02",
             f"logging.period={LOG_PERIOD}",
-            # Against 1e-4 this changes the 30 s run's force metrics by < 0.5 % (docs/speed.md).
+            # Against 1e-4 this changes the 30 s run's force metrics by < 0.5 %
+            # (docs/evidence/speed.md).
             "simulator.accuracy=1e-3",
         ],
     )

@@ -1,4 +1,4 @@
-"""Sensor faults that keep the sensor's noise, while the wall recedes (docs/safety.md
+"""Sensor faults that keep the sensor's noise, while the wall recedes (docs/evidence/safety.md
 section 3): safe_contact (the moving-wall arm, FlexiForce noise 0.02 N, Fr = 5 N,
 Fmax = 10 N, the wall receding at 5 mm/s from 2.5 s).
 

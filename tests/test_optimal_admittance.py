@@ -12,7 +12,7 @@ from pydrake.systems.analysis import Simulator
 
 from admittance.systems.optimal_admittance import OptimalAdmittance, OptimalAdmittanceLaw
 
-GAMMA, ALPHA, K = 1e-5, 0.1, 2500.0  # the paper's x-axis values (docs/paper-notes.md §4)
+GAMMA, ALPHA, K = 1e-5, 0.1, 2500.0  # the paper's x-axis values (docs/evidence/paper-notes.md §4)
 
 
 def _block(**kwargs):
@@ -53,7 +53,8 @@ def test_output_is_the_derivative_free_law():
     "measured, direction", [(2.0, +1.0), (8.0, -1.0)], ids=["below_Fr", "above_Fr"]
 )
 def test_sign_moves_reference_toward_the_wall_while_force_is_low(measured, direction):
-    """docs/paper-notes.md §2: F < Fr => Xr grows along +x (into the wall); F > Fr => it recedes."""
+    """docs/evidence/paper-notes.md §2: F < Fr => Xr grows along +x (into the wall); F > Fr => it
+    recedes."""
     block = _block()
     context = _context(block, measured=measured, desired=5.0)
     simulator = Simulator(block, context)

@@ -7,6 +7,7 @@ the table of kinds (``robots/kinds.py``) is the only place that lists the robots
   robot's scenario or result type, tests ``isinstance`` on one, or spells a kind;
 * no robot's package imports another's;
 * the hardware controller, which drives one robot, loads no module of the others;
+* no module holds more than one topic (500 lines) and no function runs over 80 lines.
 
 Each rule is also run on a small offending module, so that a rule that cannot fail is seen.
 """
@@ -19,9 +20,14 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from admittance.diagrams.robots.kinds import KINDS, every_robot
 
 REPOSITORY = Path(__file__).resolve().parents[1]
+# A module longer than this holds more than one topic; a longer function, more than one step.
+MAX_MODULE_LINES = 500
+MAX_FUNCTION_LINES = 80
 ROBOTS = REPOSITORY / "diagrams" / "robots"
 TABLE = ROBOTS / "kinds.py"
 
@@ -206,3 +212,33 @@ def test_the_hardware_controller_loads_no_module_of_another_robot():
         )
     ]
     assert others == []
+
+
+def _long_functions(tree: ast.AST) -> list[str]:
+    return [
+        f"{node.name} ({node.end_lineno - node.lineno + 1} lines)"
+        for node in ast.walk(tree)
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
+        and node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES
+    ]
+
+
+def test_no_module_over_500_lines_and_no_function_over_80():
+    big = {
+        str(p.relative_to(REPOSITORY)): n
+        for p in _library_files()
+        if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES
+    }
+    long = {
+        str(p.relative_to(REPOSITORY)): found
+        for p in _library_files()
+        if (found := _long_functions(ast.parse(p.read_text())))
+    }
+    assert big == {}
+    assert long == {}
+
+
+@pytest.mark.parametrize("lines, expected", [(80, []), (81, ["f (81 lines)"])])
+def test_the_function_length_check_counts_lines(lines, expected):
+    body = "".join(f"    x{i} = {i}\n" for i in range(lines - 1))
+    assert _long_functions(ast.parse("def f():\n" + body)) == expected

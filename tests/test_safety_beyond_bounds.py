@@ -1,4 +1,5 @@
-"""Walls beyond the stated bounds (docs/safety.md, section 7): a contact stiffer than
+"""Walls beyond the stated bounds (docs/evidence/safety-beyond-bounds.md, section 7): a contact
+stiffer than
 Ke_max is reported, and the law's approach speed follows the estimate.
 
 The law's numbers by hand at an estimate above Ke_max, the detection by hand on a logged
@@ -166,7 +167,8 @@ def test_a_wall_approaching_at_the_derived_bound_stays_under_fmax():
     Fmax = 4.9 mm/s at Ke_max. The 1e6 N/m wall approaches at 4.9 mm/s from 1.5 to 2.0 s
     (contact from 0.86 s): measured 7.99 N, no loss; then the law has caught up, and the
     force is at most Fr + v_w / (Gamma K) = 5 + 0.0049 / 0.012 = 5.41 N (5.45 N at 1.99 s
-    with the law alone, 5.07 N with the monitor's retreat: docs/safety.md, section 7)."""
+    with the law alone, 5.07 N with the monitor's retreat: docs/evidence/safety-beyond-bounds.md,
+    section 7)."""
     speed = 0.0049
     result = run_scenario(
         load_scenario(
@@ -283,7 +285,8 @@ def test_a_stiff_contact_after_a_soft_one_starts_from_the_prior():
     """A 1e4 N/m wall, then (off the tip) 1e6 N/m: the soft contact's estimate (1.07e4,
     the wall's within the secant's 3/4 steps) does not carry into the stiff contact, which
     starts from the prior Ke_max = 1e6 and stays within the margin's factor 3 of the wall.
-    The code before left 4.3e4 N/m there, 23 times low (docs/safety.md, section 7)."""
+    The code before left 4.3e4 N/m there, 23 times low (docs/evidence/safety-beyond-bounds.md,
+    section 7)."""
     result = run_scenario(
         load_scenario(
             "safe_contact",

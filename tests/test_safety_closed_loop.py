@@ -141,8 +141,8 @@ def test_with_the_layer_off_the_loop_is_the_paper_s():
     assert math.isinf(load_scenario("paper_stiffness_step").admittance.max_force)
 
 
-# The Monte Carlo of docs/sweeps.md (200 walls of random stiffness, position and sensor
-# noise), with the layer on and Fmax = 10 N (docs/safety.md has the command and its table).
+# The Monte Carlo of docs/evidence/sweeps.md (200 walls of random stiffness, position and sensor
+# noise), with the layer on and Fmax = 10 N (docs/evidence/safety.md has the command and its table).
 MONTE_CARLO = {
     "overrides": [
         "duration=8",

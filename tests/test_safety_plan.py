@@ -1,4 +1,5 @@
-"""Fmax and the approach bound whatever the plan does (docs/safety.md, "Whatever the plan").
+"""Fmax and the approach bound whatever the plan does (docs/evidence/safety-plan.md, "Whatever the
+plan").
 
 `unexpected_obstacle` with the layer on, Fmax = 10 N and the paper's travel bound
 max_retract = 2 cm: the plan sweeps the tip along x into a wall at 0.19 m (Ke = 1e5 N/m)
@@ -113,7 +114,7 @@ def test_a_plan_120_mm_into_the_wall_touches_at_v_max_and_holds_fr():
 @pytest.mark.slow
 @pytest.mark.parametrize("depth_mm", [30, 60, 80, 120])
 def test_deeper_plans_keep_fmax_and_the_approach_bound(depth_mm):
-    """The table of docs/safety.md: peak 5.09 N and first contact at 9.27-9.29 mm/s against
+    """The table of docs/evidence/safety.md: peak 5.09 N and first contact at 9.27-9.29 mm/s against
     9.34 mm/s for every depth."""
     result = run_scenario(load_scenario("unexpected_obstacle", _slow_plan(depth_mm)))
     safety = result.metrics["safety"]
@@ -137,7 +138,7 @@ def test_a_payload_the_layer_was_told_about_touches_under_its_bound():
     the layer's apparent mass at the contact is the arm's with the payload, 1.41 kg
     (0.909 + 0.5, and the exact point-mass term), v_max falls to 7.50 mm/s, and the first
     contact, at 7.46 mm/s, peaks at 7.06 N. Told nothing, the layer approaches at the bare
-    arm's 9.34 mm/s and strikes 8.15 N (docs/safety.md, section 5)."""
+    arm's 9.34 mm/s and strikes 8.15 N (docs/evidence/safety-plan.md, section 5)."""
     result = _payload_run(told=True)
     safety = result.metrics["safety"]
     assert result.metrics["peak_force"] <= FMAX

@@ -1,4 +1,4 @@
-"""The safety layer on a sampled controller with a delayed reading (docs/safety.md,
+"""The safety layer on a sampled controller with a delayed reading (docs/evidence/safety.md,
 section 8): the `sensor.latency` key, the delay line, the discrete-time margins, and a
 short closed-loop run."""
 
@@ -271,7 +271,8 @@ def _stiff_wall_run(latency: float, duration: float = 1.5):
 
 def test_the_sampled_layer_holds_a_stiff_wall_with_half_a_tick_of_latency():
     """1 kHz, L = 0.5 ms, Ke = Ke_max = 1e6 N/m. The sampled loop's Gamma* there is
-    5.0e-6 (docs/safety.md, section 8), below the scenario's Gamma = 1e-5, which the
+    5.0e-6 (docs/evidence/safety-sampled.md, section 8), below the scenario's Gamma = 1e-5, which
+    the
     continuous schedule (Gamma* 1.5e-4) would keep: only the sampled schedule keeps the
     loop stable (spectral radius 0.998 at Gamma_s = 1.68e-6, 1.14 at 1e-5). The
     first contact peaks under Fmax (the approach bound), contact holds, and over the last
@@ -293,7 +294,7 @@ def test_the_sampled_layer_holds_a_stiff_wall_with_half_a_tick_of_latency():
 def test_safe_contact_at_1_khz_with_latency(latency):
     """The whole safe_contact at 1 kHz with the reading 0.25 ms and 0.5 ms late (8 s: the
     approach, the contact on the 1e5 N/m wall and its 5 mm/s retreat): the first contact
-    under Fmax, no contact loss, the steady state within 2 % of Fr (docs/safety.md,
+    under Fmax, no contact loss, the steady state within 2 % of Fr (docs/evidence/safety.md,
     section 8)."""
     from admittance.diagrams.robots.planar_arm.run import run_scenario
     from admittance.diagrams.scenario.files import load_scenario

@@ -262,7 +262,7 @@ def test_simulate_a_urdf_outside_the_repository(tmp_path, capsys):
 @pytest.mark.parametrize("name", ["panda_surface_follow", "ur5_surface_follow"])
 def test_full_follow_meets_the_bounds(name):
     """The built-in polishing runs: within 5 % of Fr (RMS), no contact loss, under 1 mm
-    and 1 degree over the whole slide (measured: docs/spatial-arm.md)."""
+    and 1 degree over the whole slide (measured: docs/evidence/spatial-arm.md)."""
     from admittance.diagrams.robots.spatial_arm.run import run_spatial
 
     m = run_spatial(load_scenario(name)).metrics

@@ -3,7 +3,7 @@ drives the tool fast into a table 1 cm higher than planned. Without the layer th
 contact peaks far above Fmax; with it the tool reaches the table under the approach bound
 v_max, derived here apart from the code from the arm's task-space inertia along the
 normal with the other axes held (Lambda_zz), Ke_max and Fmax by the closed form of
-docs/safety.md, section 1, and the first contact stays under Fmax."""
+docs/evidence/safety-approach.md, section 1, and the first contact stays under Fmax."""
 
 from __future__ import annotations
 

@@ -91,7 +91,7 @@ def test_papers_gains_are_stable_with_margin(paper_with_sensor):
 
 def test_linear_model_matches_the_nonlinear_diagram(paper_with_sensor):
     step = linear_versus_nonlinear(paper_with_sensor, step=0.1, duration=0.5, samples=51)
-    # The force follows the 0.1 N step of Fr. Quasi-static model (docs/paper-notes.md §4):
+    # The force follows the 0.1 N step of Fr. Quasi-static model (docs/evidence/paper-notes.md §4):
     # the error jumps to 0.1 / (1 + K_eff Gamma K alpha) = 0.0144 N (K_eff = Kp Ke / (Kp + Ke)
     # = 2381 N/m) and decays with alpha + 1 / (K_eff Gamma K) = 0.117 s: 2e-4 N is left at
     # 0.5 s (measured 7.6e-5 N). 1e-3 N holds that with a factor of 5.
@@ -150,7 +150,7 @@ def test_lyapunov_function_along_the_paper_run():
 def test_lyapunov_function_along_the_moving_wall_rises_by_the_force_lag():
     """Settled before the wall moves, V holds the noise's share only; the wall receding at
     v = 5 mm/s from t = 2.5 s leaves the force error E = v / (Gamma K) = 0.42 N (the lag of
-    docs/paper-notes.md §4), so the mean of V rises by 1/2 (v / (Gamma K))^2 = 0.087."""
+    docs/evidence/paper-notes.md §4), so the mean of V rises by 1/2 (v / (Gamma K))^2 = 0.087."""
     result = run_scenario(load_scenario("paper_moving_wall", ["duration=4.0"]))
     trajectory = lyapunov_along_trajectory(result)
     V = trajectory["V"]

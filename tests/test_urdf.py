@@ -22,7 +22,8 @@ URDF_PATH = URDF_DIR / "planar_arm.urdf"
 JOINTS = ("joint1", "joint2", "joint3")
 LINKS = ("link1", "link2", "link3")
 GRAVITY_VECTOR = np.array([0.0, -9.81, 0.0])
-LINK_LENGTHS = (0.20, 0.20, 0.10)  # The project's default (docs/paper-notes.md, section 6).
+# The project's default (docs/evidence/paper-notes.md, section 6).
+LINK_LENGTHS = (0.20, 0.20, 0.10)
 TASK_X = (0.14, 0.21)
 TASK_Y = (-0.275, -0.225)
 TASK_THETA = math.pi / 2

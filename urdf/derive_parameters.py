@@ -23,7 +23,7 @@ import numpy as np
 
 # --- Geometry -------------------------------------------------------------------------
 # Link lengths l1, l2 (joint to joint) and l3 (joint 3 to the fingertip contact point), m.
-# Project default (docs/paper-notes.md, section 6): the paper does not print them.
+# Project default (docs/evidence/paper-notes.md, section 6): the paper does not print them.
 LINK_LENGTHS: tuple[float, float, float] = (0.20, 0.20, 0.10)
 # Plate thickness, m: 9.525 mm = 3/8 in (paper, Section VI-A).
 PLATE_THICKNESS = 9.525e-3

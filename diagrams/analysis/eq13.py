@@ -1,5 +1,5 @@
 """The paper's eq. 12-13 re-derived symbolically for the corrected sign of eq. 10 (see
-docs/paper-notes.md, section 2): V falls along the law, and would grow with the printed
+docs/evidence/paper-notes.md, section 2): V falls along the law, and would grow with the printed
 sign.
 """
 

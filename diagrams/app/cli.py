@@ -1,4 +1,4 @@
-"""The `admittance` command line (see README.md, "Commands").
+"""The `admittance` command line (see docs/reference/commands.md).
 
     admittance simulate  [SCENARIO] [--set KEY=VALUE ...] [--out DIR] [--force]
     admittance stability [SCENARIO] [--set KEY=VALUE ...] [--out DIR] [--force] [--quick]

@@ -1,5 +1,5 @@
 """`admittance station` and `admittance control`: the two processes of the hardware split
-(docs/hardware.md), each on an LCM URL that keeps its packets on this machine.
+(docs/evidence/hardware.md), each on an LCM URL that keeps its packets on this machine.
 
     admittance station SCENARIO --lcm URL [--out DIR] [--force]
     admittance control SCENARIO --lcm URL [--out DIR] [--force]

@@ -302,7 +302,7 @@ LCM_HELP = "LCM URL: memq:// (one process) or udpm://GROUP:PORT?ttl=0 (packets s
 
 def _add_hardware_commands(commands, handlers: Mapping[str, Callable]) -> None:
     """`station` and `control`: the robot (simulated) and the controller as two processes
-    that speak Drake's LCM driver messages (docs/hardware.md)."""
+    that speak Drake's LCM driver messages (docs/evidence/hardware.md)."""
     for name, help, default in (
         (
             "station",

@@ -1,5 +1,5 @@
 """The hardware split: a station that is (or simulates) the robot and a controller process
-that knows it only through Drake's LCM driver messages (docs/hardware.md)."""
+that knows it only through Drake's LCM driver messages (docs/evidence/hardware.md)."""
 
 from admittance.diagrams.hardware.config import *  # noqa: F403
 from admittance.diagrams.hardware.controller import *  # noqa: F403

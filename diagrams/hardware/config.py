@@ -201,7 +201,7 @@ def _check_what_the_hardware_runs(scenario) -> None:
     if scenario.safety.enabled:
         raise ScenarioError(
             "safety.enabled: the hardware controller runs the paper's law with its watchdogs, "
-            "not the safety layer (docs/hardware.md); set it to false, or run the layer "
+            "not the safety layer (docs/evidence/hardware.md); set it to false, or run the layer "
             "with admittance simulate"
         )
     if scenario.faults:

@@ -129,7 +129,7 @@ class AdmittanceController:
         self.start_check = self.law.check_gains(self.period, 1, self.law.initial_positions)
         problem = self.start_check.problem()
         if problem is not None and config.gain_check:
-            raise ScenarioError(problem + " (docs/hardware.md, the sampled loop)")
+            raise ScenarioError(problem + " (docs/evidence/hardware.md, the sampled loop)")
         self.last_check = self.start_check
         self.gain_checks: list[dict] = []
         self._checked_from = 0

@@ -1,5 +1,5 @@
 """The safety layer's four systems at one force point, built and wired alike on every
-robot (docs/safety.md): the momentum observer, the sensor monitor, the stiffness
+robot (docs/evidence/safety.md): the momentum observer, the sensor monitor, the stiffness
 estimator and the safe law. Each robot's layer (robots.planar_arm.safety_layer for the planar arm,
 robots.spatial_arm.safety_layer for a spatial arm's tool tip) says what is its own through
 ``LayerNumbers`` and wires the reading, Fr, Xd and the law's Xr.
@@ -47,7 +47,8 @@ TOLERANCE_SHARE = 0.2
 TOLERANCE_NOISE_DEVIATIONS = 6.0
 # The stiffness estimate updates once F - F_c is above this share of Fr.
 INFORMATIVE_SHARE = 0.2
-# A contact stiffer than stated (docs/safety.md, section 7): the estimate above this
+# A contact stiffer than stated (docs/evidence/safety-beyond-bounds.md, section 7): the estimate
+# above this
 # factor times Ke_max. It starts at the prior Ke_max and rises only on a stiffer secant:
 # 1.07e6 N/m at most on the 1e6 N/m walls measured; 2 leaves room for the secant's noise.
 STIFFER_FACTOR = 2.0

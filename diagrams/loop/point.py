@@ -300,7 +300,7 @@ def AddForceController(builder: DiagramBuilder, point: ForcePoint):
         system = OptimalAdmittance(
             gamma=law.gamma,
             alpha=law.alpha,
-            # K of eq. 10 is the PID's stiffness on the force axis (docs/paper-notes.md,
+            # K of eq. 10 is the PID's stiffness on the force axis (docs/evidence/paper-notes.md,
             # section 4).
             stiffness=point.force_axis_stiffness,
             force_axes=axes,

@@ -86,7 +86,7 @@ class ForceLaw:
     max_push: float = 0.01
     max_retract: float = 0.1
     # Fmax, an explicit upper bound on the force, N (.inf = none), and the weight mu of
-    # its penalty (docs/force-bound.md).
+    # its penalty (docs/evidence/force-bound.md).
     max_force: float = math.inf
     force_bound_gain: float = 4.0
     # The baselines' gains: mass, damping, stiffness, adaptation_rate.
@@ -128,7 +128,7 @@ class ForcePoint:
 
     @property
     def stiffness(self) -> float:
-        """K of eq. 10: the PID's stiffness on the (first) force axis (docs/paper-notes.md,
+        """K of eq. 10: the PID's stiffness on the (first) force axis (docs/evidence/paper-notes.md,
         section 4)."""
         return float(self.kp[self.force_axes[0]])
 

@@ -141,7 +141,8 @@ RANGES: dict[str, Range] = {
     # A point mass at the fingertip that the URDF does not carry (a tool, a grasped part).
     "safety.payload_mass": Range("[0, 10]", "kg"),
     "arm.payload_mass": Range("[0, 10]", "kg"),
-    # Viscous friction at the motor shaft (docs/safety.md, section 3: 2.4e-6 stated).
+    # Viscous friction at the motor shaft (docs/evidence/safety-sensor-faults.md, section 3: 2.4e-6
+    # stated).
     "arm.motor_damping": Range("[0, 1e-3]", "N m s/rad"),
 }
 

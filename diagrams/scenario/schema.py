@@ -1,4 +1,4 @@
-"""Scenarios: typed YAML descriptions of one closed-loop run (README.md, "Scenarios").
+"""Scenarios: typed YAML descriptions of one closed-loop run (docs/reference/scenarios.md).
 
 A scenario is a tree of dataclasses loaded with Drake's ``yaml_load_typed``. Every field has
 a default equal to the paper's value (Section VII-A); the built-in scenarios in

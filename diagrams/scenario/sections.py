@@ -2,8 +2,8 @@
 
 ``sensor``, ``controller``, ``admittance`` and ``pid`` (the keys of the loop at a
 force-controlled point, whatever the robot), ``simulator`` (Drake's SimulatorConfig, with
-an implicit integrator by default), ``safety`` (the safety layer, docs/safety.md),
-``faults`` (injected faults, docs/reliability.md) and ``logging``. Each robot's scenario
+an implicit integrator by default), ``safety`` (the safety layer, docs/evidence/safety.md),
+``faults`` (injected faults, docs/evidence/reliability.md) and ``logging``. Each robot's scenario
 (planar_arm, planar_gripper) includes the sections it runs, and a robot whose section
 has more keys (the arm's ADC noise period, its baselines, its digital controller) or
 other defaults (the gripper's two task coordinates) extends the shared one; a robot that
@@ -36,7 +36,7 @@ __all__ = [
 def implicit_simulator_config(max_step_size: float) -> SimulatorConfig:
     """Drake's radau3 with error control at accuracy 1e-4: the loops are stiff (a wall or a
     contact of 1e4-1e5 N/m, a 5 kHz sensor filter, Kd on light links), where an implicit
-    integrator takes a few hundred steps and an explicit one ~150,000 (docs/speed.md,
+    integrator takes a few hundred steps and an explicit one ~150,000 (docs/evidence/speed.md,
     "Integrator")."""
     return SimulatorConfig(
         integration_scheme="radau3",
@@ -89,7 +89,7 @@ class PidSection:
 
 @dataclass
 class SafetyConfig:
-    # The safety layer (docs/safety.md): a bounded approach, a stiffness-aware Gamma and a
+    # The safety layer (docs/evidence/safety.md): a bounded approach, a stiffness-aware Gamma and a
     # sensor monitor around the paper's law; false = the paper's law as printed.
     enabled: bool = False
     # Ke_max, the stated upper bound on the wall's stiffness, N/m: it sets the approach

@@ -122,7 +122,7 @@ def baseline_gains(scenario: Scenario) -> dict[str, float]:
     Matched: the paper's law, with the PID's stiffness Kp, is an integrator of gain
     Gamma Kp from force error to Xr, whose force loop crosses over at Kp Gamma Kp; the
     classical admittance's damper 1 / (Gamma Kp) has the same crossover, critically damped
-    by its mass, and the adaptive impedance adapts five times slower (docs/comparison.md).
+    by its mass, and the adaptive impedance adapts five times slower (docs/evidence/comparison.md).
     """
     controller = scenario.controller
     if controller.tuning == "manual":

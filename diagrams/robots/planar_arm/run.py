@@ -317,7 +317,8 @@ def _add_safety_metrics(metrics: dict, result: SimulationResult) -> None:
     metrics["safety_reach_limited"] = metrics["safety"]["reach_limited"]
     stiffer = metrics["safety"]["stiffer_than_stated"]
     if stiffer is not None:
-        # What the layer held after it backed off (docs/safety.md, section 7).
+        # What the layer held after it backed off (docs/evidence/safety-beyond-bounds.md, section
+        # 7).
         after = result.time >= stiffer["time"]
         contact = in_contact(result.force[after], result.scenario.force_reference)
         stiffer["peak_force_after"] = float(np.max(result.force[after]))

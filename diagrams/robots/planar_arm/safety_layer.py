@@ -1,4 +1,4 @@
-"""The safety layer in the closed loop (safety.enabled; docs/safety.md).
+"""The safety layer in the closed loop (safety.enabled; docs/evidence/safety.md).
 
 Between the sensor and the PID, in place of the paper's admittance block:
 
@@ -159,8 +159,9 @@ class SafetyLayer:
             raise ScenarioError(
                 f"pid.kd, pid.period: the sampled PID's damping is unstable on this arm: "
                 f"h max eig(J M^-1 J^T Kd) = {gain:.3g} at the start, must be below "
-                f"{SAMPLED_DAMPER_LIMIT:g} (docs/safety.md, section 8); with safety.enabled the "
-                "layer cannot bound the force: lower pid.kd, shorten pid.period, or model the "
+                f"{SAMPLED_DAMPER_LIMIT:g} (docs/evidence/safety-sampled.md, section 8); with "
+                "safety.enabled the layer cannot bound the force: lower pid.kd, shorten "
+                "pid.period, or model the "
                 "motors' inertia (arm.reflected_inertia=true), as safe_contact_1khz does"
             )
 
@@ -271,7 +272,7 @@ def _AddWallMotionMonitor(
     builder, scenario, contact: ContactFrame, plant, law, detector, estimator
 ) -> WallMotionMonitor:
     """The approaching wall's monitor at the layer's contact, wired from the trusted
-    reading and the estimate to the law (docs/safety.md, section 7)."""
+    reading and the estimate to the law (docs/evidence/safety-beyond-bounds.md, section 7)."""
     monitor = builder.AddSystem(
         WallMotionMonitor(
             plant,
@@ -297,7 +298,7 @@ def CapStepForSampledMonitor(scenario: Scenario, simulator) -> None:
     Drake 1.51: radau3 stepping next to periodic events T apart, with a step that may reach
     T, shrinks its steps geometrically on paper_stiffness_step's sliding trajectory (3,036
     steps for 0.1 s with a no-op 5 ms event, 61 without; 74 with the step capped at 2.5 ms;
-    docs/safety.md). A step of at most T / 2 avoids it.
+    docs/evidence/safety.md). A step of at most T / 2 avoids it.
     """
     integrator = simulator.get_mutable_integrator()
     cap = 0.5 * scenario.sensor.noise_period
@@ -313,7 +314,8 @@ def reach_limit(result, plant, effort_limits) -> float | None:
     command Xc = Xd + Xr: an actuator at its effort limit, or Xc out of the arm's reach
     (no inverse kinematics from the logged joints). None if there is no such time.
 
-    The layer bounds neither how far Xr retracts nor the command's retreat (docs/safety.md):
+    The layer bounds neither how far Xr retracts nor the command's retreat
+    (docs/evidence/safety.md):
     past Fmax only the arm itself can have stopped it, and this says when.
     """
     scenario = result.scenario

@@ -11,7 +11,7 @@ needs to show the loop's fastest mode.
 
 With the layer on, the Gamma of the map is the user's: the layer runs with
 Gamma_s = min(Gamma, Gamma*(k_hat) / margin), the estimate frozen at the equilibrium's
-(docs/safety.md). Each edge run starts at the contact equilibrium of the nonlinear diagram
+(docs/evidence/safety.md). Each edge run starts at the contact equilibrium of the nonlinear diagram
 (arm, PID, wall, sensor filter, the layer) and steps Fr by 0.5 N
 (stability.simulate_near_critical): it is stable when contact holds and the force error's
 peak over the last fifth of the run is below its peak over the first fifth.

@@ -128,7 +128,7 @@ class ControllerConfig(ControllerSection):
     # fixed_reference: relative error of its stiffness estimate (0.1 = 10 % too stiff).
     stiffness_error: float = 0.0
     # Baseline gains: "matched" derives them from the paper's law (same force-loop
-    # crossover Kp Gamma K, docs/comparison.md); "manual" takes the values below.
+    # crossover Kp Gamma K, docs/evidence/comparison.md); "manual" takes the values below.
     tuning: str = "matched"
     # classical_admittance and adaptive_impedance (manual tuning): virtual mass, kg,
     mass: float = 0.16
@@ -179,7 +179,8 @@ class ArmConfig:
     payload_mass: float = 0.0
     # Viscous friction of each motor, N m s/rad at the motor shaft: joint i gets N_i^2 times
     # it (N_i its gear ratio in the URDF), as Drake joint damping. 0 = none (the paper's
-    # model); docs/safety.md section 3 states a value for the URDF's motors and gearheads.
+    # model); docs/evidence/safety-sensor-faults.md section 3 states a value for the URDF's motors
+    # and gearheads.
     motor_damping: float = 0.0
     # Joint-space seed that picks the elbow branch of the initial inverse kinematics, rad.
     joint_guess: list[float] = field(default_factory=lambda: [-0.45, 1.66, 0.36])

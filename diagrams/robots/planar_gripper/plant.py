@@ -16,7 +16,7 @@ wires one copy of the paper's Fig. 1 per finger from that description:
   contact point with a linear stiffness, the paper's Ke of eq. 4, swept directly by
   ``contact.stiffness`` and ``brick.stiffness_error``), with Hunt-Crossley dissipation and
   Coulomb friction, on a discrete plant (SAP's convex solver, "lagged" approximation).
-  docs/grasp.md gives the measurements behind the choice (time per simulated second, force
+  docs/evidence/grasp.md gives the measurements behind the choice (time per simulated second, force
   ripple, Linearize).
 * Every controller and the sensors' ADC are sampled at the plant's time step.
 * Each finger's task space is (x, y) of its tip sphere's centre in a frame C fixed at the

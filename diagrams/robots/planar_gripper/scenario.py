@@ -86,7 +86,7 @@ class GraspContactConfig:
     friction: float = 0.5
     # The discrete plant's stiction tolerance v_s, m/s (Drake's default): SAP regularizes
     # friction, so a tip carrying a tangential load slips at a speed of the order of
-    # v_s f_t / (mu N), or of SAP's own floor where that is larger (docs/grasp.md, "The
+    # v_s f_t / (mu N), or of SAP's own floor where that is larger (docs/evidence/grasp.md, "The
     # creep of a held brick").
     stiction_tolerance: float = 1.0e-4
 
@@ -118,7 +118,7 @@ class GraspAdmittanceConfig(AdmittanceSection):
     gamma: float = 1.0e-5
     # alpha of eq. 7 and 10, s. Sampled at time_step, alpha passes each force sample
     # straight to the PID and excites the brick's contact resonance: with Ke = 1e5 N/m
-    # 0.02 oscillates and 0.01 holds (docs/grasp.md), so 0, as the arm's 1 kHz
+    # 0.02 oscillates and 0.01 holds (docs/evidence/grasp.md), so 0, as the arm's 1 kHz
     # digital controller.
     alpha: float = 0.0
     # Largest reference offset into the brick, m (bounded, with anti-windup).
@@ -180,7 +180,7 @@ class GraspScenario:
     force_reference: list[float] = field(default_factory=lambda: [2.0, 2.0, 1.0])
     # Step of the discrete plant (SAP, point contact) and period of the sampled
     # controllers and sensor readout, s; 0 = a continuous plant and controllers, integrated
-    # by `simulator` (about 20 times slower; docs/grasp.md).
+    # by `simulator` (about 20 times slower; docs/evidence/grasp.md).
     time_step: float = 0.001
     brick: GraspBrickConfig = field(default_factory=GraspBrickConfig)
     contact: GraspContactConfig = field(default_factory=GraspContactConfig)

@@ -23,7 +23,7 @@ is a rigid part of the last link. This module adds what the task needs:
   and PID.
 
 **Contact.** Drake's compliant point contact on a discrete plant (SAP, "lagged"
-approximation), as the gripper's (docs/grasp.md): a sphere on a box face is one contact
+approximation), as the gripper's (docs/evidence/grasp.md): a sphere on a box face is one contact
 point with a linear stiffness, the paper's Ke of eq. 4, set directly by
 ``surface.stiffness`` (1e5 N/m by default: a steel ball on a rubber-padded table, 0.1 mm
 deep at 10 N; a bare steel table, ~1e7 N/m, needs a step well under 1 ms for the PID's

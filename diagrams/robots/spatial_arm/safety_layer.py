@@ -1,4 +1,5 @@
-"""The safety layer on a spatial arm's tool tip (safety.enabled; docs/safety.md, section 10).
+"""The safety layer on a spatial arm's tool tip (safety.enabled; docs/evidence/safety-spatial.md,
+section 10).
 
 In place of the paper's admittance block at the tool tip, as on the planar arm
 (robots.planar_arm.safety_layer):

@@ -1,5 +1,5 @@
 """The spatial arm's gains checked against the sampled loop whose command comes late: the
-hardware split's check at its start and while it runs (docs/hardware.md).
+hardware split's check at its start and while it runs (docs/evidence/hardware.md).
 
 A controller that answers the robot's status at t_k has its command act from the robot's
 next tick on: one period late when it answers within the period, N periods late when its

@@ -172,7 +172,7 @@ class SpatialAdmittanceConfig(AdmittanceSection):
     # Gamma of eq. 10 on z (K is pid.kp[2]): the force loop crosses over near
     # Gamma K k_eff = 24 rad/s (k_eff, the PID's stiffness in series with the contact's),
     # under the contact's resonance (~220 rad/s with the arm's apparent mass); 2e-5
-    # bounces on the first contact (docs/spatial-arm.md).
+    # bounces on the first contact (docs/evidence/spatial-arm.md).
     gamma: float = 6.0e-6
     # alpha of eq. 7 and 10, s (sampled at time_step: 0, as the gripper's).
     alpha: float = 0.0
@@ -218,7 +218,7 @@ class SpatialSafetyConfig(SafetyConfig):
     # Fmax, the bound on the force along the planned normal, N (the planar arm's is
     # admittance.max_force): the approach speed v_max is the one whose impact on a table
     # of max_stiffness peaks at it, with the arm's apparent mass along the normal with the
-    # PID's other axes held (docs/safety.md, section 10).
+    # PID's other axes held (docs/evidence/safety-spatial.md, section 10).
     max_force: float = 20.0
 
 
