@@ -43,7 +43,9 @@ POSE = [0.2, -0.25, math.pi / 2]
 
 
 def _normal_row(arm_plant, pose=POSE):
-    q = SolvePlanarInverseKinematics(arm_plant, "fingertip", pose, [-0.45, 1.66, 0.36])
+    q = SolvePlanarInverseKinematics(
+        arm_plant, "fingertip", pose, [-0.45, 1.66, 0.36], coordinates=PLANAR_COORDINATES
+    )
     kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.concatenate([q, np.zeros(3)]))
     return q, kinematics.jacobian()

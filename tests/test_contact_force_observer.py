@@ -36,7 +36,9 @@ POSE = [0.2, -0.25, math.pi / 2]
 
 @pytest.fixture
 def arm(arm_plant):
-    q = SolvePlanarInverseKinematics(arm_plant, "fingertip", POSE, [-0.45, 1.66, 0.36])
+    q = SolvePlanarInverseKinematics(
+        arm_plant, "fingertip", POSE, [-0.45, 1.66, 0.36], coordinates=PLANAR_COORDINATES
+    )
     v = np.array([0.3, -0.2, 0.1])  # moving: p = M v is not zero
     kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.concatenate([q, v]))
@@ -150,7 +152,9 @@ def _falling_arm(plant, coriolis: bool, duration: float):
     simulator.get_mutable_integrator().set_target_accuracy(1e-9)
     context = simulator.get_mutable_context()
     arm_context = arm.GetMyMutableContextFromRoot(context)
-    q0 = SolvePlanarInverseKinematics(arm, "fingertip", POSE, [-0.45, 1.66, 0.36])
+    q0 = SolvePlanarInverseKinematics(
+        arm, "fingertip", POSE, [-0.45, 1.66, 0.36], coordinates=PLANAR_COORDINATES
+    )
     arm.SetPositions(arm_context, q0)
     arm.SetVelocities(arm_context, [1.0, -1.0, 1.0])
     observer.set_external_torque(observer.GetMyMutableContextFromRoot(context), np.zeros(3))
@@ -259,7 +263,9 @@ def test_the_sampled_observer_steps_r_toward_the_external_torque_by_euler(arm_pl
     r[0] = 0: r[n] = tau_ext (1 - (1 - K_o h)^n). Measured to rounding (1e-15 N m); 1e-12."""
     plant = arm_plant
     h, gain = 1e-3, 100.0
-    q = SolvePlanarInverseKinematics(plant, "fingertip", POSE, [-0.45, 1.66, 0.36])
+    q = SolvePlanarInverseKinematics(
+        plant, "fingertip", POSE, [-0.45, 1.66, 0.36], coordinates=PLANAR_COORDINATES
+    )
     state = np.concatenate([q, np.zeros(3)])
     torque = np.array([0.4, -0.2, 0.05])
     observer = ContactForceObserver(plant, contact=TIP, gain=gain, period=h)

@@ -49,7 +49,11 @@ def _at_the_pose(arm_plant, detector, tip_velocity=(0.0, 0.0, 0.0)):
     (x, y, theta rates) and k_hat = 5e4 N/m."""
     context = detector.CreateDefaultContext()
     q = SolvePlanarInverseKinematics(
-        arm_plant, "fingertip", [0.2, -0.25, math.pi / 2], [-0.45, 1.66, 0.36]
+        arm_plant,
+        "fingertip",
+        [0.2, -0.25, math.pi / 2],
+        [-0.45, 1.66, 0.36],
+        coordinates=PLANAR_COORDINATES,
     )
     kinematics = PlanarFrameKinematics(arm_plant, "fingertip", coordinates=PLANAR_COORDINATES)
     kinematics.set_state(np.concatenate([q, np.zeros(3)]))

@@ -55,7 +55,9 @@ def test_the_observer_reads_the_damping_torque_as_a_force_below_the_tolerance():
     damping torque (it is the external torque it sees)."""
     plant = _arm(MOTOR_DAMPING)
     pose = [0.15, -0.25, math.pi / 2]
-    q = SolvePlanarInverseKinematics(plant, "fingertip", pose, [-0.45, 1.66, 0.36])
+    q = SolvePlanarInverseKinematics(
+        plant, "fingertip", pose, [-0.45, 1.66, 0.36], coordinates=PLANAR_COORDINATES
+    )
     tip = ContactFrame(frame_name="fingertip", coordinates=PLANAR_COORDINATES, normal_axis=0)
     observer = ContactForceObserver(plant, contact=tip, gain=100.0)
     context = observer.CreateDefaultContext()

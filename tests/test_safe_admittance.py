@@ -62,7 +62,9 @@ def _law(plant, **overrides):
 def law(arm_plant):
     system = _law(arm_plant)
     context = system.CreateDefaultContext()
-    q = SolvePlanarInverseKinematics(arm_plant, "fingertip", POSE, [-0.45, 1.66, 0.36])
+    q = SolvePlanarInverseKinematics(
+        arm_plant, "fingertip", POSE, [-0.45, 1.66, 0.36], coordinates=PLANAR_COORDINATES
+    )
     system.estimated_state_input.FixValue(context, np.concatenate([q, np.zeros(3)]))
     system.desired_force_input.FixValue(context, [FR])
     system.desired_position_input.FixValue(context, POSE)
@@ -187,7 +189,11 @@ def test_the_offset_is_pulled_below_its_push_bound_by_back_calculation_alone(law
 def test_a_run_starts_with_the_reference_at_the_tip(arm_plant, law):
     system, context, _ = law
     q = SolvePlanarInverseKinematics(
-        arm_plant, "fingertip", [0.14, -0.25, POSE[2]], [-0.7, 1.7, 0.5]
+        arm_plant,
+        "fingertip",
+        [0.14, -0.25, POSE[2]],
+        [-0.7, 1.7, 0.5],
+        coordinates=PLANAR_COORDINATES,
     )
     system.estimated_state_input.FixValue(context, np.concatenate([q, np.zeros(3)]))
     system.measured_force_input.FixValue(context, [0.0])
@@ -219,7 +225,9 @@ def test_every_system_of_the_layer_converts_to_autodiff(arm_plant):
             observer_gain=100.0,
         ),
     )
-    q = SolvePlanarInverseKinematics(arm_plant, "fingertip", POSE, [-0.45, 1.66, 0.36])
+    q = SolvePlanarInverseKinematics(
+        arm_plant, "fingertip", POSE, [-0.45, 1.66, 0.36], coordinates=PLANAR_COORDINATES
+    )
     state = InitializeAutoDiff(np.concatenate([q, [0.0, 0.0, 0.0]]))[:, 0]
     for system in (observer, estimator, detector, _law(arm_plant)):
         converted = system.ToAutoDiffXd()

@@ -53,7 +53,9 @@ LAW = SafeAdmittanceParams(
 def _law(arm_plant, estimate: float, **extra):
     law = SafeAdmittance(arm_plant, contact=TIP, params=dataclasses.replace(LAW, **extra))
     context = law.CreateDefaultContext()
-    q = SolvePlanarInverseKinematics(arm_plant, "fingertip", POSE, [-0.45, 1.66, 0.36])
+    q = SolvePlanarInverseKinematics(
+        arm_plant, "fingertip", POSE, [-0.45, 1.66, 0.36], coordinates=PLANAR_COORDINATES
+    )
     law.estimated_state_input.FixValue(context, np.concatenate([q, np.zeros(3)]))
     law.desired_force_input.FixValue(context, [FR])
     law.desired_position_input.FixValue(context, POSE)

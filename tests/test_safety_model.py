@@ -11,6 +11,7 @@ import pytest
 from admittance.diagrams.robots.planar_arm.stability import critical_gamma as full_critical_gamma
 from admittance.diagrams.scenario.files import load_scenario
 from admittance.systems import contact_model as model
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES
 
 
 def _integrate_impact(speed, mass, kp, kd, stiffness, duration, steps=200_000):
@@ -146,10 +147,14 @@ def test_apparent_mass_of_the_arm_at_the_paper_s_pose(arm_plant):
     """The fingertip of the built-in arm at (0.2, -0.25, pi/2): 0.92 kg along x (the
     value the stability check above uses), from M(q) and J(q) of the plant."""
     from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
-    from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
+    from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
     q = SolvePlanarInverseKinematics(
-        arm_plant, "fingertip", [0.2, -0.25, math.pi / 2], [-0.45, 1.66, 0.36]
+        arm_plant,
+        "fingertip",
+        [0.2, -0.25, math.pi / 2],
+        [-0.45, 1.66, 0.36],
+        coordinates=PLANAR_COORDINATES,
     )
     context = arm_plant.CreateDefaultContext()
     arm_plant.SetPositions(context, q)
@@ -237,7 +242,7 @@ def test_the_payload_allowance_is_the_mass_of_a_payload_welded_at_the_fingertip(
     from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
     from admittance.diagrams.robots.planar_arm.plant import AddPlanarArm
     from admittance.diagrams.robots.planar_arm.scenario import URDF_DIR
-    from admittance.systems.planar_kinematics import PLANAR_COORDINATES, PlanarFrameKinematics
+    from admittance.systems.planar_kinematics import PlanarFrameKinematics
 
     def apparent(payload_in_plant: float, allowance: float) -> float:
         plant, _ = AddPlanarArm(
@@ -247,7 +252,11 @@ def test_the_payload_allowance_is_the_mass_of_a_payload_welded_at_the_fingertip(
             payload_mass=payload_in_plant,
         )
         q = SolvePlanarInverseKinematics(
-            plant, "fingertip", [0.2, -0.25, math.pi / 2], [-0.45, 1.66, 0.36]
+            plant,
+            "fingertip",
+            [0.2, -0.25, math.pi / 2],
+            [-0.45, 1.66, 0.36],
+            coordinates=PLANAR_COORDINATES,
         )
         kinematics = PlanarFrameKinematics(plant, "fingertip", coordinates=PLANAR_COORDINATES)
         kinematics.set_state(np.concatenate([q, np.zeros(3)]))

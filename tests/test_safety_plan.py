@@ -178,7 +178,9 @@ def test_the_reach_metric_names_the_first_sample_the_arm_could_not_follow(arm_pl
     from admittance.diagrams.robots.planar_arm.safety_layer import reach_limit
 
     pose = [0.19, -0.25, np.pi / 2]
-    q = SolvePlanarInverseKinematics(arm_plant, "fingertip", pose, [-0.45, 1.66, 0.36])
+    q = SolvePlanarInverseKinematics(
+        arm_plant, "fingertip", pose, [-0.45, 1.66, 0.36], coordinates=PLANAR_COORDINATES
+    )
     limits = np.array([30.0, 20.0, 5.0])
     result = SimpleNamespace(
         scenario=load_scenario("unexpected_obstacle", QUOTED),

@@ -15,6 +15,7 @@ from admittance.diagrams.app.cli import main
 from admittance.diagrams.loop.point import AddLatency
 from admittance.diagrams.robots.description import ForceLaw, ForcePoint, SensorChain
 from admittance.systems import contact_model
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES
 from admittance.systems.sampled_loop import (
     SampledContactLoop,
     sampled_loop_matrix,
@@ -55,6 +56,8 @@ def test_a_sampled_controller_reads_the_force_of_latency_ago(latency):
     point = ForcePoint(
         name="",
         frame="fingertip",
+        coordinates=PLANAR_COORDINATES,
+        force_axes=(0,),
         sensor=SensorChain(latency=latency, noise_period=0.005),
         law=ForceLaw(period=period),
     )
@@ -168,7 +171,6 @@ def test_latency_lowers_the_critical_gamma_at_1_khz():
 def _sampled_law(plant, latency: float):
     from admittance.diagrams.robots.inverse_kinematics import SolvePlanarInverseKinematics
     from admittance.systems.contact_frame import ContactFrame
-    from admittance.systems.planar_kinematics import PLANAR_COORDINATES
     from admittance.systems.safe_admittance import SafeAdmittance
     from admittance.systems.safety_numbers import SafeAdmittanceParams
 
@@ -195,7 +197,9 @@ def _sampled_law(plant, latency: float):
         ),
     )
     pose = [0.15, -0.25, np.pi / 2]
-    q = SolvePlanarInverseKinematics(plant, "fingertip", pose, [-0.45, 1.66, 0.36])
+    q = SolvePlanarInverseKinematics(
+        plant, "fingertip", pose, [-0.45, 1.66, 0.36], coordinates=PLANAR_COORDINATES
+    )
     return law, np.concatenate([q, np.zeros(3)])
 
 

@@ -138,7 +138,11 @@ def _estimator(arm_plant, **extra):
 def _sample(arm_plant, estimator, context, force, seed, fault=0.0):
     """One sample with the tip on the wall at 0.2 m, Ke = 5e4: x = 0.2 + F / 5e4."""
     seed = SolvePlanarInverseKinematics(
-        arm_plant, "fingertip", [WALL + force / 5e4, -0.25, math.pi / 2], seed
+        arm_plant,
+        "fingertip",
+        [WALL + force / 5e4, -0.25, math.pi / 2],
+        seed,
+        coordinates=PLANAR_COORDINATES,
     )
     estimator.estimated_state_input.FixValue(context, np.concatenate([seed, np.zeros(3)]))
     estimator.measured_force_input.FixValue(context, [force])

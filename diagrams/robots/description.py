@@ -103,12 +103,13 @@ class ForcePoint:
     name: str
     # The frame at the contact point (a fingertip frame of the plant).
     frame: str
-    # Task coordinates X of the frame, and the frame they are expressed in: x, y, z, theta
-    # (planar), or x, y, z, rx, ry, rz (rotation vector) in a control frame.
-    coordinates: tuple[str, ...] = ("x", "y", "theta")
-    expressed_in: str = "world"
+    # Task coordinates X of the frame: x, y, z, theta (planar), or x, y, z, rx, ry, rz
+    # (rotation vector).
+    coordinates: tuple[str, ...]
     # The axes of X under force control (the others follow Xd under the PID alone).
-    force_axes: tuple[int, ...] = (0,)
+    force_axes: tuple[int, ...]
+    # The frame X is measured and expressed in.
+    expressed_in: str = "world"
     sensor: SensorChain = field(default_factory=SensorChain)
     law: ForceLaw = field(default_factory=ForceLaw)
     # The Cartesian PID's gains on each coordinate of X (eq. 14-16) and its period, s.

@@ -18,17 +18,17 @@ def SolvePlanarInverseKinematics(
     target,
     joint_guess,
     *,
+    coordinates: tuple[str, ...],
     tolerance: float = 1e-10,
     max_iterations: int = 100,
-    coordinates: tuple[str, ...] = ("x", "y", "theta"),
     expressed_in: str = "world",
 ) -> np.ndarray:
     """Joint positions that put `frame_name` at X = target, by Newton steps from a seed.
 
     Uses the plant's own kinematics (so any planar URDF works); the seed picks the branch.
-    X is (x, y, theta) in world unless `coordinates` and `expressed_in` say otherwise (a
-    fingertip's (x, y) in its face's frame); the seed may hold every position of the plant,
-    and joints that do not move the frame keep their seed.
+    X holds `coordinates` (the planar arm's (x, y, theta), a fingertip's (x, y)) in
+    `expressed_in` (world, or the frame of a finger's face); the seed may hold every
+    position of the plant, and joints that do not move the frame keep their seed.
 
     Raises:
         ValueError: the target is not reached (out of the workspace, or singular).

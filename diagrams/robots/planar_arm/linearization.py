@@ -83,7 +83,11 @@ def FindContactEquilibrium(scenario: Scenario, *, tolerance: float = 1e-9) -> Eq
     pose[WALL_NORMAL_AXIS] = frozen.wall.position + frozen.force_reference / frozen.wall.stiffness
     try:
         q = SolvePlanarInverseKinematics(
-            plant, frozen.arm.fingertip_frame, pose, frozen.arm.joint_guess
+            plant,
+            frozen.arm.fingertip_frame,
+            pose,
+            frozen.arm.joint_guess,
+            coordinates=PLANAR_COORDINATES,
         )
     except ValueError as error:
         raise ScenarioError(f"trajectory.center: {error}") from None

@@ -321,7 +321,11 @@ def CheckTrajectoryReachable(loop: ClosedLoop, samples: int = 16) -> None:
         where = ", ".join(f"{v:.4g}" for v in point)
         try:
             seed = SolvePlanarInverseKinematics(
-                loop.plant, scenario.arm.fingertip_frame, point, seed
+                loop.plant,
+                scenario.arm.fingertip_frame,
+                point,
+                seed,
+                coordinates=PLANAR_COORDINATES,
             )
         except ValueError:
             raise ScenarioError(
@@ -402,7 +406,11 @@ def SetInitialConditions(loop: ClosedLoop, context: Context) -> None:
         target[WALL_NORMAL_AXIS] = min(target[WALL_NORMAL_AXIS], loop.wall.position_at(0.0))
     try:
         q0 = SolvePlanarInverseKinematics(
-            plant, scenario.arm.fingertip_frame, target, scenario.arm.joint_guess
+            plant,
+            scenario.arm.fingertip_frame,
+            target,
+            scenario.arm.joint_guess,
+            coordinates=PLANAR_COORDINATES,
         )
     except ValueError as error:
         key = "arm.initial_position" if scenario.arm.initial_position else "trajectory.center"

@@ -17,6 +17,7 @@ from pydrake.systems.framework import DiagramBuilder
 from admittance.diagrams.robots.description import ForcePoint, force_law, sensor_chain
 from admittance.diagrams.robots.planar_arm.scenario import ArmConfig, Scenario
 from admittance.diagrams.scenario.schema import ScenarioError
+from admittance.systems.planar_kinematics import PLANAR_COORDINATES
 
 __all__ = [
     "WALL_NORMAL_AXIS",
@@ -151,6 +152,7 @@ def fingertip_point(scenario: Scenario) -> ForcePoint:
     return ForcePoint(
         name="",
         frame=scenario.arm.fingertip_frame,
+        coordinates=PLANAR_COORDINATES,
         force_axes=(WALL_NORMAL_AXIS,),
         sensor=sensor_chain(
             scenario.sensor,

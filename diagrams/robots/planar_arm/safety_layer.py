@@ -327,7 +327,11 @@ def reach_limit(result, plant, effort_limits) -> float | None:
             return float(result.time[row])
         try:
             SolvePlanarInverseKinematics(
-                plant, scenario.arm.fingertip_frame, command[row], result.joint_positions[row]
+                plant,
+                scenario.arm.fingertip_frame,
+                command[row],
+                result.joint_positions[row],
+                coordinates=PLANAR_COORDINATES,
             )
         except ValueError:
             return float(result.time[row])
