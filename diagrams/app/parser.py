@@ -54,13 +54,13 @@ def _builtin_names() -> list[str]:
     return sorted(path.stem for path in _SCENARIO_DIR.glob("*.yaml"))
 
 
-def _add_common_arguments(parser: argparse.ArgumentParser) -> None:
+def _add_common_arguments(parser: argparse.ArgumentParser, default: str) -> None:
     parser.add_argument(
         "scenario",
         nargs="?",
-        default=DEFAULT_SCENARIO,
+        default=default,
         help=f"built-in name ({', '.join(_builtin_names())}) or a YAML path "
-        f"(default: {DEFAULT_SCENARIO})",
+        f"(default: {default})",
     )
     parser.add_argument(
         "--set",
@@ -83,7 +83,9 @@ def _version() -> str:
         return "unknown"
 
 
-def _subcommand(commands, name: str, help: str) -> argparse.ArgumentParser:
+def _subcommand(
+    commands, name: str, help: str, default: str = DEFAULT_SCENARIO
+) -> argparse.ArgumentParser:
     parser = commands.add_parser(
         name,
         help=help,
@@ -91,7 +93,7 @@ def _subcommand(commands, name: str, help: str) -> argparse.ArgumentParser:
         epilog=EXIT_STATUS,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    _add_common_arguments(parser)
+    _add_common_arguments(parser, default)
     return parser
 
 
@@ -99,8 +101,9 @@ def build_parser(handlers: Mapping[str, Callable]) -> argparse.ArgumentParser:
     """The command line's parser; each subcommand's `handler` is handlers[its name]."""
     parser = _Parser(
         prog="admittance",
-        description="Optimal admittance control of a 3-DOF planar arm against a compliant "
-        "wall (Drake).",
+        description="Optimal admittance control on Drake: the paper's planar arm against its "
+        "compliant wall, Drake's planar gripper, spatial arms (Panda, UR5) on a table, and the "
+        "split into a station and a controller over LCM.",
         epilog=EXIT_STATUS,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -184,8 +187,8 @@ def _add_grasp_compare(commands, handlers: Mapping[str, Callable]) -> None:
         "grasp-compare",
         "a grasp with position-only fingers against the paper's law, over brick size and "
         "contact stiffness errors: held, crushed or lost",
+        "grasp_hold",
     )
-    grasp_compare.set_defaults(scenario="grasp_hold")
     grasp_compare.add_argument(
         "--size-errors",
         default="-0.002,0,0.002",
@@ -317,8 +320,7 @@ def _add_hardware_commands(commands, handlers: Mapping[str, Callable]) -> None:
             "results/<scenario>_control",
         ),
     ):
-        command = _subcommand(commands, name, help)
-        command.set_defaults(scenario="panda_surface_press")
+        command = _subcommand(commands, name, help, "panda_surface_press")
         command.add_argument("--lcm", required=True, metavar="URL", help=LCM_HELP)
         command.add_argument("--out", help=f"output folder (default: {default})")
         command.add_argument("--force", action="store_true", help=FORCE_HELP)
